@@ -1,0 +1,12 @@
+"""jaxfem: differentiable structural dynamics in JAX (model → K, M → modes → responses)."""
+
+from ._assembly import assemble as assemble
+from ._eigen import DEGENERATE_RTOL as DEGENERATE_RTOL
+from ._eigen import eigh as eigh
+from ._eigen import nelson as nelson
+from ._matrix import AbstractSymmetricMatrix as AbstractSymmetricMatrix
+from ._matrix import DenseMatrix as DenseMatrix
+from ._matrix import ElementMatrix as ElementMatrix
+from ._model import DofMap as DofMap
+from ._model import Model as Model
+from ._model import correct as correct

@@ -1,0 +1,190 @@
+"""Assembly of K(p) and M(p): vmapped element matrices, constraint elimination, scatter.
+
+Each element matrix (basic axes, grid DoFs) is transformed to the solved DoFs with the
+per-node constraint map of :class:`jaxfem.DofMap` (SPC removal and RBE2 elimination,
+``u_grid = T u_solved``), ``A_e ← T_eᵀ A_e T_e``, and kept element-stacked in an
+:class:`ElementMatrix`.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._matrix import ElementMatrix
+from ._model import COMPONENTS, DofMap, Model, check_float64
+from .elements import (
+    beam_mass,
+    beam_stiffness,
+    bush_stiffness,
+    conm2_mass,
+    rigid_offset,
+    rod_mass,
+    rod_stiffness,
+)
+
+
+def _node_transform(model: Model, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """T (n_el, 6·nn, nn·w) and solved-DoF indices (n_el, nn·w) for elements on `nodes`."""
+    n_el, nn = nodes.shape
+    w = model.dofs.index.shape[1]
+    coef = model.dofs.coef[nodes]  # (n_el, nn, 6, w)
+    t = np.zeros((n_el, nn * COMPONENTS, nn * w))
+    for a in range(nn):
+        t[:, a * COMPONENTS : (a + 1) * COMPONENTS, a * w : (a + 1) * w] = coef[:, a]
+    return t, model.dofs.index[nodes].reshape(n_el, nn * w)
+
+
+def _spring_transform(model: Model) -> tuple[np.ndarray, np.ndarray]:
+    """T (n, 2, 2w) and indices (n, 2w) for scalar springs; node -1 is ground."""
+    s = model.springs
+    n, w = len(s.ids), model.dofs.index.shape[1]
+    t = np.zeros((n, 2, 2 * w))
+    idx = np.full((n, 2 * w), model.n_dof, dtype=np.int64)
+    for a in range(2):
+        grounded = s.nodes[:, a] < 0
+        node = np.where(grounded, 0, s.nodes[:, a])
+        comp = np.where(grounded, 1, s.components[:, a]) - 1
+        t[:, a, a * w : (a + 1) * w] = np.where(grounded[:, None], 0.0, model.dofs.coef[node, comp])
+        idx[:, a * w : (a + 1) * w] = np.where(grounded[:, None], model.n_dof, model.dofs.index[node])
+    return t, idx
+
+
+def _reduce(t: np.ndarray, a: jax.Array) -> jax.Array:
+    return jnp.einsum("eia,eij,ejb->eab", t, a, t)
+
+
+def _element_blocks(model: Model):
+    """Stiffness and mass element blocks in grid DoFs: dict name -> (nodes, K_e, M_e)."""
+    out = {}
+    lumped = model.lumped
+    if len(model.beams.ids):
+        b, sec, mat = model.beams, model.beam_sections, model.materials
+        s = b.section
+        m = sec.material[s]
+        xa = model.xyz[b.nodes[:, 0]] + b.offsets[:, 0]
+        xb = model.xyz[b.nodes[:, 1]] + b.offsets[:, 1]
+        t = jax.vmap(rigid_offset)(b.offsets[:, 0], b.offsets[:, 1])
+        ke = jax.vmap(beam_stiffness)(
+            xa, xb, b.v, mat.E[m], mat.G[m], sec.A[s], sec.I1[s], sec.I2[s], sec.J[s], sec.K1[s], sec.K2[s]
+        )
+        me = jax.vmap(lambda *a: beam_mass(*a, lumped=lumped))(
+            xa, xb, b.v, mat.rho[m], sec.A[s], sec.nsm[s], sec.I1[s], sec.I2[s], sec.K1[s], sec.K2[s],
+            mat.E[m], mat.G[m],
+        )
+        ke = _reduce(t, ke) * b.k_scale[:, None, None]
+        me = _reduce(t, me) * b.m_scale[:, None, None]
+        out["beams"] = (b.nodes, ke, me)
+    if len(model.rods.ids):
+        r, sec, mat = model.rods, model.rod_sections, model.materials
+        s = r.section
+        m = sec.material[s]
+        xa, xb = model.xyz[r.nodes[:, 0]], model.xyz[r.nodes[:, 1]]
+        ke = jax.vmap(rod_stiffness)(xa, xb, mat.E[m], mat.G[m], sec.A[s], sec.J[s])
+        me = jax.vmap(lambda *a: rod_mass(*a, lumped=lumped))(xa, xb, mat.rho[m], sec.A[s], sec.nsm[s])
+        out["rods"] = (r.nodes, ke * r.k_scale[:, None, None], me * r.m_scale[:, None, None])
+    if len(model.bushes.ids):
+        u = model.bushes
+        xa, xb = model.xyz[u.nodes[:, 0]], model.xyz[u.nodes[:, 1]]
+        ke = jax.vmap(bush_stiffness)(xa, xb, u.axes, u.k, u.s) * u.k_scale[:, None, None]
+        out["bushes"] = (u.nodes, ke, None)
+    if len(model.masses.ids):
+        c = model.masses
+        me = jax.vmap(conm2_mass)(c.m, c.offset, c.inertia) * c.m_scale[:, None, None]
+        out["masses"] = (c.nodes[:, None], None, me)
+    return out
+
+
+def _spring_block(model: Model):
+    s = model.springs
+    unit = jnp.array([[1.0, -1.0], [-1.0, 1.0]])
+    return (s.k * s.k_scale)[:, None, None] * unit
+
+
+def assemble(model: Model) -> tuple[ElementMatrix, ElementMatrix]:
+    """Stiffness and mass matrices of the solved DoFs, K(p) and M(p).
+
+    **Arguments:** a :class:`jaxfem.Model` (any float leaf may be traced).
+    **Returns:** ``(K, M)`` as :class:`jaxfem.ElementMatrix` (``.todense()`` for arrays);
+    ``M.massless`` lists the DoFs without inertia. Units: N/m and kg (SI).
+    """
+    for name, leaf in (("xyz", model.xyz), ("materials.E", model.materials.E)):
+        check_float64(name, leaf)
+    k_blocks, k_idx, m_blocks, m_idx = [], [], [], []
+    for nodes, ke, me in _element_blocks(model).values():
+        t, idx = _node_transform(model, nodes)
+        if ke is not None:
+            k_blocks.append(_reduce(t, ke))
+            k_idx.append(idx)
+        if me is not None:
+            m_blocks.append(_reduce(t, me))
+            m_idx.append(idx)
+    if len(model.springs.ids):
+        t, idx = _spring_transform(model)
+        k_blocks.append(_reduce(t, _spring_block(model)))
+        k_idx.append(idx)
+    n = model.n_dof
+    none = np.zeros(0, np.int64)
+    K = ElementMatrix(tuple(k_blocks), tuple(k_idx), none, n)
+    M = ElementMatrix(tuple(m_blocks), tuple(m_idx), model.dofs.massless, n)
+    return K, M
+
+
+def _diagonal(a: ElementMatrix) -> np.ndarray:
+    d = np.zeros(a.n + 1)
+    for blk, idx in zip(a.blocks, a.indices):
+        np.add.at(d, idx, np.asarray(jnp.diagonal(blk, axis1=1, axis2=2)))
+    return d[: a.n]
+
+
+def finalize_dofs(model: Model) -> Model:
+    """Remove DoFs with neither stiffness nor mass (auto-SPC) and mark massless DoFs.
+
+    Works on the nominal values of the model (the structural zero pattern does not
+    change with the parameters). Raises ``ValueError`` naming the DoFs when the
+    massless DoFs form a mechanism (their stiffness block is singular).
+    """
+    dofs = model.dofs
+    K, M = assemble(eqx.tree_at(lambda m: m.dofs.massless, model, np.zeros(0, np.int64)))
+    dk, dm = _diagonal(K), _diagonal(M)
+    scale_k = max(np.max(np.abs(dk), initial=0.0), np.finfo(float).tiny)
+    scale_m = max(np.max(np.abs(dm), initial=0.0), np.finfo(float).tiny)
+    no_k = np.abs(dk) <= 1e-14 * scale_k
+    no_m = np.abs(dm) <= 1e-14 * scale_m
+    drop = no_k & no_m
+    keep = np.flatnonzero(~drop)
+    new_number = np.full(dofs.n_dof + 1, len(keep), dtype=np.int64)
+    new_number[keep] = np.arange(len(keep))
+    index = new_number[dofs.index]
+    coef = np.where((index == len(keep))[:, None, :], 0.0, dofs.coef)
+    massless = np.flatnonzero(no_m[keep])
+    new = DofMap(
+        index=index,
+        coef=coef,
+        labels=dofs.labels[keep],
+        massless=massless,
+        auto_spc=dofs.labels[drop].reshape(-1, 2),
+        n_dof=len(keep),
+    )
+    model = eqx.tree_at(lambda m: m.dofs, model, new)
+    if len(massless):
+        _check_massless_stiffness(model, massless)
+    return model
+
+
+def _check_massless_stiffness(model: Model, massless: np.ndarray) -> None:
+    K, _ = assemble(model)
+    kbb = np.asarray(K.todense())[np.ix_(massless, massless)]
+    try:
+        np.linalg.cholesky(kbb)
+    except np.linalg.LinAlgError:
+        w, v = np.linalg.eigh(kbb)
+        worst = massless[np.argsort(-np.abs(v[:, 0]))[:4]]
+        labels = [tuple(int(x) for x in model.dofs.labels[i]) for i in worst]
+        raise ValueError(
+            "massless DoFs without stiffness (a mechanism): the stiffness of the DoFs that "
+            f"carry no mass is singular (smallest eigenvalue {w[0]:.3g}); involved "
+            f"(node, component): {labels}. Add mass or stiffness there, or constrain them."
+        ) from None

@@ -1,0 +1,239 @@
+"""Generalised symmetric eigenproblem ``K φ = λ M φ`` with implicit-differentiation JVP.
+
+Forward: massless DoFs (structurally zero rows of M) are condensed statically
+(exact for them), ``K* = K_aa − K_ab K_bb⁻¹ K_ba``; then ``M_aa = L Lᵀ`` reduces the
+problem to a standard one solved by LAPACK through ``jnp.linalg.eigh``. All modes are
+computed, so the derivative rule can use the complete modal expansion.
+
+Derivative rule (all quantities at the solution, φ mass-normalised, full length):
+
+    g_r  = (dK − λ_r dM) φ_r
+    dλ_r = φ_rᵀ g_r                                             thesis eq. (3.18)
+    dφ_r = Σ_{s≠r} φ_s (−φ_sᵀ g_r)/(λ_s − λ_r)                  eqs. (3.23), (3.28)
+           − ½ (φ_rᵀ dM φ_r) φ_r                                 eq. (3.29)
+           − [0; K_bb⁻¹ (g_r)_b]                                 static part on massless DoFs
+
+The last term is exact for massless DoFs: writing dφ = Φc + [0; w], the rows of
+(K − λ_r M) dφ = −g_r + dλ_r M φ_r on the massless DoFs give K_bb w = −(g_r)_b, and the
+remaining rows reduce to the expansion above with the full-length vectors.
+
+Degenerate policy: modes whose eigenvalues differ by less than
+``rtol·max(|λ_r|, |λ_s|) + atol`` (``atol = 1e3·eps·max|λ|``, which groups the rigid-body
+modes) form a cluster. Within a cluster the eigenvectors are not unique, so the
+rule sets their mutual rotation coefficients to zero: the derivative of the cluster's
+spectral projector (and of anything invariant to the basis inside the cluster) is
+exact, and no division by a vanishing gap can occur. Eigenvalue derivatives in a
+cluster come from the degenerate-subspace eigenproblem of
+``D_rs = φ_rᵀ (dK − λ̄ dM) φ_s``: ``degenerate="mean"`` (default) returns for each
+member the mean of its eigenvalues — the exact derivative of the cluster mean, linear
+in the tangent and so valid in reverse mode (``jax.grad``); ``degenerate="split"``
+returns the sorted eigenvalues of D — the one-sided directional derivatives of the
+sorted eigenvalues, valid in forward mode only (``jax.jvp``, ``jax.jacfwd``).
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import jax.scipy.linalg as jsl
+import numpy as np
+from jaxtyping import Array, Float
+
+from ._matrix import AbstractSymmetricMatrix, DenseMatrix
+from ._model import check_float64
+
+DEGENERATE_RTOL = 1e-6
+
+
+def _operator(name: str, a) -> AbstractSymmetricMatrix:
+    if not isinstance(a, AbstractSymmetricMatrix):
+        a = jnp.asarray(a)
+        if a.ndim != 2 or a.shape[0] != a.shape[1]:
+            raise ValueError(f"{name} must be a square matrix, got shape {a.shape}")
+        a = DenseMatrix(a)
+    check_float64(name, a.values())
+    return a
+
+
+def eigh(
+    K,
+    M,
+    n_modes: int | None = None,
+    *,
+    degenerate: Literal["mean", "split"] = "mean",
+    rtol: float = DEGENERATE_RTOL,
+) -> tuple[Float[Array, " m"], Float[Array, "n m"]]:
+    """Lowest modes of ``K φ = λ M φ`` (thesis eq. 1.33), differentiable.
+
+    **Arguments:**
+    - ``K``, ``M``: symmetric matrices (arrays or :class:`jaxfem.ElementMatrix` from
+      :func:`jaxfem.assemble`); K positive semidefinite, M positive definite on all DoFs
+      except those listed in ``M.massless``.
+    - ``n_modes``: number of lowest modes returned (default: all with mass).
+    - ``degenerate``, ``rtol``: policy and relative threshold for clusters of (nearly)
+      repeated eigenvalues; see the module documentation.
+
+    **Returns:** ``(λ, Φ)``: eigenvalues λ = ω² in (rad/s)², ascending, and
+    mass-normalised eigenvectors (ΦᵀMΦ = I) as columns, each signed so that its
+    largest-magnitude component is positive.
+    """
+    K, M = _operator("K", K), _operator("M", M)
+    if K.n != M.n:
+        raise ValueError(f"K is {K.n}×{K.n} but M is {M.n}×{M.n}")
+    n_free = M.n - len(M.massless)
+    n_modes = n_free if n_modes is None else int(n_modes)
+    if not 1 <= n_modes <= n_free:
+        raise ValueError(f"n_modes must be in 1..{n_free} (DoFs with mass), got {n_modes}")
+    if degenerate not in ("mean", "split"):
+        raise ValueError(f"degenerate must be 'mean' or 'split', got {degenerate!r}")
+    return _eigh(K, M, n_modes=n_modes, degenerate=degenerate, rtol=float(rtol))
+
+
+def _solve(K: AbstractSymmetricMatrix, M: AbstractSymmetricMatrix):
+    """All modes with mass; also the Cholesky factor of K_bb (massless block)."""
+    kd, md = K.todense(), M.todense()
+    n = K.n
+    b = np.asarray(M.massless, dtype=np.int64)
+    a = np.setdiff1d(np.arange(n), b)
+    if len(b):
+        kbb = kd[np.ix_(b, b)]
+        lb = jnp.linalg.cholesky(kbb)
+        lb = eqx.error_if(
+            lb,
+            ~jnp.all(jnp.isfinite(lb)),
+            "stiffness of the massless DoFs is not positive definite (a mechanism)",
+        )
+        x = jsl.cho_solve((lb, True), kd[np.ix_(b, a)])
+        ks = kd[np.ix_(a, a)] - kd[np.ix_(a, b)] @ x
+        maa = md[np.ix_(a, a)]
+    else:
+        lb, x, ks, maa = None, None, kd, md
+    lm = jnp.linalg.cholesky(maa)
+    lm = eqx.error_if(
+        lm,
+        ~jnp.all(jnp.isfinite(lm)),
+        "mass matrix is not positive definite: indefinite mass, or massless DoFs not "
+        "declared in M.massless",
+    )
+    y = jsl.solve_triangular(lm, ks, lower=True)
+    std = jsl.solve_triangular(lm, y.T, lower=True)
+    lam, vec = jnp.linalg.eigh(0.5 * (std + std.T))
+    phi_a = jsl.solve_triangular(lm.T, vec, lower=False)
+    phi = jnp.zeros((n, len(a))).at[a].set(phi_a)
+    if len(b):
+        phi = phi.at[b].set(-x @ phi_a)
+    big = jnp.take_along_axis(phi, jnp.argmax(jnp.abs(phi), axis=0)[None], axis=0)
+    phi = phi * jnp.where(big < 0, -1.0, 1.0)
+    return lam, phi, lb
+
+
+def _clusters(lam: Float[Array, " k"], rtol: float) -> Array:
+    """Cluster index of each sorted eigenvalue (consecutive, transitive)."""
+    atol = 1e3 * jnp.finfo(lam.dtype).eps * jnp.max(jnp.abs(lam))
+    gap = jnp.diff(lam)
+    scale = jnp.maximum(jnp.abs(lam[1:]), jnp.abs(lam[:-1]))
+    new = gap > rtol * scale + atol
+    return jnp.concatenate([jnp.zeros(1, jnp.int32), jnp.cumsum(new.astype(jnp.int32))])
+
+
+def _tangent_matmul(A: AbstractSymmetricMatrix, dA, x: Array) -> Array:
+    """``dA @ x`` for a tangent of A given as a pytree with None for symbolic zeros."""
+    if dA is None:
+        return jnp.zeros_like(x)
+    values = jax.tree.map(
+        lambda p, t: jnp.zeros_like(p) if t is None else t,
+        A.values(),
+        dA.values(),
+        is_leaf=lambda t: t is None,
+    )
+    return A.with_values(values).matmul(x)
+
+
+@eqx.filter_custom_jvp
+def _eigh(K, M, *, n_modes, degenerate, rtol):
+    lam, phi, _ = _solve(K, M)
+    return lam[:n_modes], phi[:, :n_modes]
+
+
+@_eigh.def_jvp
+def _eigh_jvp(primals, tangents, *, n_modes, degenerate, rtol):
+    K, M = primals
+    dK, dM = tangents
+    lam, phi, lb = _solve(K, M)
+    m = n_modes
+    m_ext = min(lam.shape[0], m + 6)  # clusters reaching past the returned modes
+    pe = phi[:, :m_ext]
+    gk = _tangent_matmul(K, dK, pe)
+    gm = _tangent_matmul(M, dM, pe)
+    g = gk - gm * lam[:m_ext]  # columns g_r = (dK − λ_r dM) φ_r
+    cluster = _clusters(lam, rtol)
+    ce = cluster[:m_ext]
+    same_e = ce[:, None] == ce[None, :]
+    # Degenerate-subspace matrix D_rs = φ_rᵀ (dK − ½(λ_r+λ_s) dM) φ_s within clusters.
+    d = pe.T @ gk - 0.5 * (lam[:m_ext, None] + lam[None, :m_ext]) * (pe.T @ gm)
+    d = jnp.where(same_e, 0.5 * (d + d.T), 0.0)
+    if degenerate == "mean":
+        dlam = (same_e @ jnp.diagonal(d)) / same_e.sum(axis=1)
+    else:
+        dlam = jax.lax.cond(
+            jnp.any(same_e.sum(axis=1) > 1),
+            lambda: _split(d, ce),
+            lambda: jnp.diagonal(d),
+        )
+    dlam = dlam[:m]
+    # Eigenvector derivatives by the complete modal expansion, eqs. (3.23)-(3.31).
+    c = -(phi.T @ g[:, :m])  # φ_sᵀ h_r for s ≠ r
+    same = cluster[:, None] == cluster[None, :m]
+    denom = lam[:, None] - lam[None, :m]
+    coef = jnp.where(same, 0.0, c / jnp.where(same, 1.0, denom))
+    c_rr = -0.5 * jnp.sum(phi[:, :m] * gm[:, :m], axis=0)
+    diag = np.arange(lam.shape[0])[:, None] == np.arange(m)[None, :]
+    coef = jnp.where(diag, c_rr[None, :], coef)
+    dphi = phi @ coef
+    b = np.asarray(M.massless, dtype=np.int64)
+    if len(b):
+        dphi = dphi.at[b].add(-jsl.cho_solve((lb, True), g[b, :m]))
+    return (lam[:m], phi[:, :m]), (dlam, dphi)
+
+
+def _split(d: Array, cluster: Array) -> Array:
+    """Sorted eigenvalues of each diagonal cluster block of ``d``, in cluster order."""
+    spacing = 2.0 * jnp.linalg.norm(d) + 1.0
+    shift = spacing * cluster.astype(d.dtype)
+    w = jnp.linalg.eigvalsh(d + jnp.diag(shift))
+    return w - shift
+
+
+def nelson(
+    K: Float[Array, "n n"],
+    M: Float[Array, "n n"],
+    lam: Float[Array, ""],
+    phi: Float[Array, " n"],
+    dK: Float[Array, "n n"],
+    dM: Float[Array, "n n"],
+) -> tuple[Float[Array, ""], Float[Array, " n"]]:
+    """Derivative of one simple eigenpair by Nelson's method, using mode r only.
+
+    Nelson (1976), AIAA J. 14(9); thesis eqs. (3.15), (3.18). With ``f = −(dK − λ dM −
+    dλ M) φ``, solve ``(K − λM) v = f`` with the component k of largest |φ_k| held at
+    zero (this removes the singularity), then add ``c φ`` with ``c = −φᵀMv − ½φᵀ dM φ``
+    to keep the mass normalisation. Works with singular M (massless DoFs).
+
+    **Arguments:** dense K, M; a mass-normalised eigenpair ``(λ, φ)``; tangents dK, dM.
+    **Returns:** ``(dλ, dφ)``.
+    """
+    for name, x in (("K", K), ("M", M), ("dK", dK), ("dM", dM)):
+        check_float64(name, x)
+    g = (dK - lam * dM) @ phi
+    dlam = phi @ g
+    f = -(g - dlam * (M @ phi))
+    k = jnp.argmax(jnp.abs(phi))
+    a = K - lam * M
+    unit = jnp.arange(phi.shape[0]) == k
+    a = jnp.where(unit[:, None] | unit[None, :], 0.0, a) + jnp.diag(unit.astype(a.dtype))
+    v = jnp.linalg.solve(a, jnp.where(unit, 0.0, f))
+    c = -phi @ (M @ v) - 0.5 * phi @ (dM @ phi)
+    return dlam, v + c * phi
