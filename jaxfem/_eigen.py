@@ -176,7 +176,7 @@ def _eigh_jvp(primals, tangents, *, n_modes, degenerate, rtol):
     d = pe.T @ gk - 0.5 * (lam[:m_ext, None] + lam[None, :m_ext]) * (pe.T @ gm)
     d = jnp.where(same_e, 0.5 * (d + d.T), 0.0)
     if degenerate == "mean":
-        dlam = (same_e @ jnp.diagonal(d)) / same_e.sum(axis=1)
+        dlam = (same_e.astype(d.dtype) @ jnp.diagonal(d)) / same_e.sum(axis=1).astype(d.dtype)
     else:
         dlam = jax.lax.cond(
             jnp.any(same_e.sum(axis=1) > 1),
