@@ -3,6 +3,7 @@
 from ._assembly import assemble as assemble
 from ._eigen import DEGENERATE_RTOL as DEGENERATE_RTOL
 from ._eigen import eigh as eigh
+from ._eigen import frequencies_hz as frequencies_hz
 from ._eigen import nelson as nelson
 from ._matrix import AbstractSymmetricMatrix as AbstractSymmetricMatrix
 from ._matrix import DenseMatrix as DenseMatrix

@@ -237,3 +237,8 @@ def nelson(
     v = jnp.linalg.solve(a, jnp.where(unit, 0.0, f))
     c = -phi @ (M @ v) - 0.5 * phi @ (dM @ phi)
     return dlam, v + c * phi
+
+
+def frequencies_hz(lam: Float[Array, " m"]) -> Float[Array, " m"]:
+    """Natural frequencies f = √λ / 2π in Hz; round-off negatives (rigid-body modes) give 0."""
+    return jnp.sqrt(jnp.maximum(lam, 0.0)) / (2 * jnp.pi)

@@ -1,0 +1,1 @@
+"""Measured data: containers, UFF files, FRFs, modal fitting, phase resonance, damage."""

@@ -1,0 +1,1 @@
+"""Model updating: correlation, parameters, residuals, solver, diagnosis, reports, CLI."""

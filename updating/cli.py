@@ -1,0 +1,78 @@
+"""The ``jaxfem`` command line."""
+
+from __future__ import annotations
+
+import json
+from importlib import resources
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, help=__doc__)
+
+
+@app.callback()
+def _main() -> None:
+    """Differentiable structural dynamics: FE models, modes and model updating (SI units)."""
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+
+
+def _modes_table(path: Path, n_modes: int) -> dict:
+    import jaxfem
+    from jaxfem.io import read_bdf
+
+    bulk = read_bdf(path)
+    model = jaxfem.build_model(bulk)
+    n_modes = min(n_modes, model.n_dof - len(model.dofs.massless))
+    K, M = jaxfem.assemble(model)
+    lam, _ = jaxfem.eigh(K, M, n_modes)
+    freqs = [float(f) for f in jaxfem.frequencies_hz(lam)]
+    return {
+        "model": str(path),
+        "n_dof": int(model.n_dof),
+        "n_massless": int(len(model.dofs.massless)),
+        "auto_spc": [[int(a), int(b)] for a, b in model.dofs.auto_spc],
+        "unknown_cards": sorted(bulk.unknown),
+        "eigenvalues": [float(x) for x in lam],
+        "frequencies_hz": freqs,
+    }
+
+
+def _print_table(result: dict) -> None:
+    typer.echo(f"model {result['model']}: {result['n_dof']} DoFs after constraints "
+               f"({result['n_massless']} massless, condensed; {len(result['auto_spc'])} auto-SPC)")
+    if result["unknown_cards"]:
+        typer.echo(f"warning: unsupported cards ignored: {', '.join(result['unknown_cards'])}", err=True)
+    typer.echo(f"{'mode':>5}  {'f [Hz]':>12}  {'λ = ω² [rad²/s²]':>18}")
+    for i, (f, lam) in enumerate(zip(result["frequencies_hz"], result["eigenvalues"]), 1):
+        typer.echo(f"{i:>5}  {f:>12.4f}  {lam:>18.6e}")
+
+
+@app.command()
+def modes(
+    model: Annotated[Path, typer.Argument(exists=True, dir_okay=False, help="Nastran bulk data (SI units)")],
+    n: Annotated[int, typer.Option("-n", "--n-modes", help="number of modes")] = 10,
+    json_out: Annotated[Path | None, typer.Option("--json", help="write results as JSON")] = None,
+) -> None:
+    """Natural frequencies of a bulk-data model."""
+    result = _modes_table(model, n)
+    _print_table(result)
+    if json_out:
+        json_out.write_text(json.dumps(result, indent=2))
+        typer.echo(f"wrote {json_out}")
+
+
+@app.command()
+def demo(
+    n: Annotated[int, typer.Option("-n", "--n-modes", help="number of modes")] = 12,
+    json_out: Annotated[Path | None, typer.Option("--json", help="write results as JSON")] = None,
+) -> None:
+    """Modes of the embedded demonstration model."""
+    with resources.as_file(resources.files("updating") / "data" / "demo.bdf") as path:
+        result = _modes_table(path, n)
+    _print_table(result)
+    if json_out:
+        json_out.write_text(json.dumps(result, indent=2))
