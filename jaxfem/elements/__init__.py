@@ -1,0 +1,10 @@
+"""Element matrices (one element per call; vmap over elements), basic axes, 6 DoFs per grid."""
+
+from ._beam import beam_axes as beam_axes
+from ._beam import beam_mass as beam_mass
+from ._beam import beam_stiffness as beam_stiffness
+from ._beam import rigid_offset as rigid_offset
+from ._bush import bush_stiffness as bush_stiffness
+from ._mass import conm2_mass as conm2_mass
+from ._rod import rod_mass as rod_mass
+from ._rod import rod_stiffness as rod_stiffness
