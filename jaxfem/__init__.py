@@ -1,6 +1,7 @@
 """jaxfem: differentiable structural dynamics in JAX (model → K, M → modes → responses)."""
 
 from ._assembly import assemble as assemble
+from ._build import build_model as build_model
 from ._eigen import DEGENERATE_RTOL as DEGENERATE_RTOL
 from ._eigen import eigh as eigh
 from ._eigen import frequencies_hz as frequencies_hz

@@ -127,8 +127,10 @@ def assemble(model: Model) -> tuple[ElementMatrix, ElementMatrix]:
         k_idx.append(idx)
     n = model.n_dof
     none = np.zeros(0, np.int64)
-    K = ElementMatrix(tuple(k_blocks), tuple(k_idx), none, n)
-    M = ElementMatrix(tuple(m_blocks), tuple(m_idx), model.dofs.massless, n)
+    K = ElementMatrix(blocks=tuple(k_blocks), indices=tuple(k_idx), massless=none, size=n)
+    M = ElementMatrix(
+        blocks=tuple(m_blocks), indices=tuple(m_idx), massless=model.dofs.massless, size=n
+    )
     return K, M
 
 

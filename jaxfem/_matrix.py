@@ -105,7 +105,9 @@ class ElementMatrix(AbstractSymmetricMatrix):
         return out[: self.size]
 
     def with_values(self, values):
-        return ElementMatrix(tuple(values), self.indices, self.massless, self.size)
+        return ElementMatrix(
+            blocks=tuple(values), indices=self.indices, massless=self.massless, size=self.size
+        )
 
     def values(self):
         return self.blocks

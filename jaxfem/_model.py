@@ -35,9 +35,10 @@ def require_float64() -> None:
 def check_float64(name: str, x) -> None:
     """Refuse a floating-point input that is not float64, naming the argument."""
     require_float64()
-    dtype = jnp.result_type(x)
-    if jnp.issubdtype(dtype, jnp.floating) and dtype != jnp.float64:
-        raise TypeError(f"{name} has dtype {dtype}; jaxfem computes in float64 only.")
+    for leaf in jax.tree.leaves(x):
+        dtype = jnp.result_type(leaf)
+        if jnp.issubdtype(dtype, jnp.floating) and dtype != jnp.float64:
+            raise TypeError(f"{name} has dtype {dtype}; jaxfem computes in float64 only.")
 
 
 def _f64(x) -> Array:
@@ -165,7 +166,7 @@ class DofMap(eqx.Module):
 class Model(eqx.Module):
     """A structural model: grids, elements by type, properties, materials, constraints.
 
-    Build one with :func:`jaxfem.io.read_bdf` + :meth:`Model.from_bulk`. All lengths in
+    Build one with ``jaxfem.build_model(jaxfem.io.read_bdf(path))``. All lengths in
     m, masses in kg, stiffnesses in N/m, moduli in Pa (SI; Nastran files carry no
     units, so the file must be written in SI).
     """
