@@ -12,6 +12,7 @@ from ._matrix import ElementMatrix as ElementMatrix
 from ._model import DofMap as DofMap
 from ._model import Model as Model
 from ._model import correct as correct
+from ._model import partition as partition
 from ._damping import rayleigh as rayleigh
 from ._damping import rayleigh_coefficients as rayleigh_coefficients
 from ._damping import rayleigh_ratio as rayleigh_ratio

@@ -33,7 +33,7 @@ sorted eigenvalues, valid in forward mode only (``jax.jvp``, ``jax.jacfwd``).
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Literal, NamedTuple
 
 import equinox as eqx
 import jax
@@ -89,15 +89,38 @@ def eigh(
         raise ValueError(f"n_modes must be in 1..{n_free} (DoFs with mass), got {n_modes}")
     if degenerate not in ("mean", "split"):
         raise ValueError(f"degenerate must be 'mean' or 'split', got {degenerate!r}")
-    return _eigh(K, M, n_modes=n_modes, degenerate=degenerate, rtol=float(rtol))
+    (kv, ks), (mv, ms) = _values_structure(K), _values_structure(M)
+    return _eigh(kv, mv, structure=_Opaque((ks, ms)), n_modes=n_modes, degenerate=degenerate,
+                 rtol=float(rtol))
 
 
-def _solve(K: AbstractSymmetricMatrix, M: AbstractSymmetricMatrix):
-    """All modes with mass; also the Cholesky factor of K_bb (massless block)."""
+class _Opaque:
+    """Hides operator structure (NumPy index maps) from tracing: a static, non-pytree leaf."""
+
+    def __init__(self, value):
+        self.value = value
+
+
+def _values_structure(a: AbstractSymmetricMatrix):
+    return eqx.partition(a, lambda x: isinstance(x, jax.Array))
+
+
+class _Eig(NamedTuple):
+    """All modes with mass, kept in the Cholesky-standardised space ``y = Lᵀ φ_a``."""
+
+    lam: Array  # (na,)
+    y: Array  # (na, na) orthonormal
+    lm: Array  # Cholesky factor of M_aa (of the condensed problem)
+    lb: Array | None  # Cholesky factor of K_bb (massless block)
+    x: Array | None  # K_bb⁻¹ K_ba, so that φ_b = −x φ_a
+    a: np.ndarray  # DoFs with mass
+    b: np.ndarray  # massless DoFs
+
+
+def _solve(K: AbstractSymmetricMatrix, M: AbstractSymmetricMatrix) -> _Eig:
     kd, md = K.todense(), M.todense()
-    n = K.n
     b = np.asarray(M.massless, dtype=np.int64)
-    a = np.setdiff1d(np.arange(n), b)
+    a = np.setdiff1d(np.arange(K.n), b)
     if len(b):
         kbb = kd[np.ix_(b, b)]
         lb = jnp.linalg.cholesky(kbb)
@@ -118,16 +141,31 @@ def _solve(K: AbstractSymmetricMatrix, M: AbstractSymmetricMatrix):
         "mass matrix is not positive definite: indefinite mass, or massless DoFs not "
         "declared in M.massless",
     )
-    y = jsl.solve_triangular(lm, ks, lower=True)
-    std = jsl.solve_triangular(lm, y.T, lower=True)
-    lam, vec = jnp.linalg.eigh(0.5 * (std + std.T))
-    phi_a = jsl.solve_triangular(lm.T, vec, lower=False)
-    phi = jnp.zeros((n, len(a))).at[a].set(phi_a)
-    if len(b):
-        phi = phi.at[b].set(-x @ phi_a)
+    half = jsl.solve_triangular(lm, ks, lower=True)
+    std = jsl.solve_triangular(lm, half.T, lower=True)
+    lam, y = jnp.linalg.eigh(0.5 * (std + std.T))
+    return _Eig(lam, y, lm, lb, x, a, b)
+
+
+def _full(e: _Eig, v: Array) -> Array:
+    """Full-length physical vectors from standardised ones: φ_a = L⁻ᵀ v, φ_b = −x φ_a."""
+    pa = jsl.solve_triangular(e.lm.T, v, lower=False)
+    if not len(e.b):
+        return pa
+    inverse = np.argsort(np.concatenate([e.a, e.b]))  # a gather: transposable for jax.grad
+    return jnp.concatenate([pa, -e.x @ pa])[inverse]
+
+
+def _dual(e: _Eig, g: Array) -> Array:
+    """``Φᵀ g`` for all modes, with Φ the full-length (unsigned) eigenvectors."""
+    ga = g[e.a] - e.x.T @ g[e.b] if len(e.b) else g
+    return e.y.T @ jsl.solve_triangular(e.lm, ga, lower=True)
+
+
+def _signs(phi: Array) -> Array:
+    """±1 per column so that the largest-magnitude component becomes positive."""
     big = jnp.take_along_axis(phi, jnp.argmax(jnp.abs(phi), axis=0)[None], axis=0)
-    phi = phi * jnp.where(big < 0, -1.0, 1.0)
-    return lam, phi, lb
+    return jnp.where(big[0] < 0, -1.0, 1.0)
 
 
 def _clusters(lam: Float[Array, " k"], rtol: float) -> Array:
@@ -153,19 +191,25 @@ def _tangent_matmul(A: AbstractSymmetricMatrix, dA, x: Array) -> Array:
 
 
 @eqx.filter_custom_jvp
-def _eigh(K, M, *, n_modes, degenerate, rtol):
-    lam, phi, _ = _solve(K, M)
-    return lam[:n_modes], phi[:, :n_modes]
+def _eigh(kv, mv, *, structure, n_modes, degenerate, rtol):
+    ks, ms = structure.value
+    e = _solve(eqx.combine(kv, ks), eqx.combine(mv, ms))
+    phi = _full(e, e.y[:, :n_modes])
+    return e.lam[:n_modes], phi * _signs(phi)
 
 
 @_eigh.def_jvp
-def _eigh_jvp(primals, tangents, *, n_modes, degenerate, rtol):
-    K, M = primals
+def _eigh_jvp(primals, tangents, *, structure, n_modes, degenerate, rtol):
+    ks, ms = structure.value
+    K, M = eqx.combine(primals[0], ks), eqx.combine(primals[1], ms)
     dK, dM = tangents
-    lam, phi, lb = _solve(K, M)
+    e = _solve(K, M)
+    lam = e.lam
     m = n_modes
     m_ext = min(lam.shape[0], m + 6)  # clusters reaching past the returned modes
-    pe = phi[:, :m_ext]
+    pe = _full(e, e.y[:, :m_ext])
+    sign = _signs(pe)
+    pe = pe * sign
     gk = _tangent_matmul(K, dK, pe)
     gm = _tangent_matmul(M, dM, pe)
     g = gk - gm * lam[:m_ext]  # columns g_r = (dK − λ_r dM) φ_r
@@ -180,26 +224,27 @@ def _eigh_jvp(primals, tangents, *, n_modes, degenerate, rtol):
     else:
         dlam = jax.lax.cond(
             jnp.any(same_e.sum(axis=1) > 1),
-            lambda: _split(d, ce),
+            lambda: _split_clusters(d, ce),
             lambda: jnp.diagonal(d),
         )
     dlam = dlam[:m]
-    # Eigenvector derivatives by the complete modal expansion, eqs. (3.23)-(3.31).
-    c = -(phi.T @ g[:, :m])  # φ_sᵀ h_r for s ≠ r
+    # Eigenvector derivatives by the complete modal expansion, eqs. (3.23)-(3.31); the
+    # sums over s are formed in the standardised space (Φ = L⁻ᵀY), whose column signs
+    # cancel in φ_s φ_sᵀ except for the s = r term.
+    c = -_dual(e, g[:, :m])  # φ_sᵀ h_r for s ≠ r
     same = cluster[:, None] == cluster[None, :m]
     denom = lam[:, None] - lam[None, :m]
     coef = jnp.where(same, 0.0, c / jnp.where(same, 1.0, denom))
-    c_rr = -0.5 * jnp.sum(phi[:, :m] * gm[:, :m], axis=0)
+    c_rr = -0.5 * jnp.sum(pe[:, :m] * gm[:, :m], axis=0) * sign[:m]
     diag = np.arange(lam.shape[0])[:, None] == np.arange(m)[None, :]
     coef = jnp.where(diag, c_rr[None, :], coef)
-    dphi = phi @ coef
-    b = np.asarray(M.massless, dtype=np.int64)
-    if len(b):
-        dphi = dphi.at[b].add(-jsl.cho_solve((lb, True), g[b, :m]))
-    return (lam[:m], phi[:, :m]), (dlam, dphi)
+    dphi = _full(e, e.y @ coef)
+    if len(e.b):
+        dphi = dphi.at[e.b].add(-jsl.cho_solve((e.lb, True), g[e.b, :m]))
+    return (lam[:m], pe[:, :m]), (dlam, dphi)
 
 
-def _split(d: Array, cluster: Array) -> Array:
+def _split_clusters(d: Array, cluster: Array) -> Array:
     """Sorted eigenvalues of each diagonal cluster block of ``d``, in cluster order."""
     spacing = 2.0 * jnp.linalg.norm(d) + 1.0
     shift = spacing * cluster.astype(d.dtype)

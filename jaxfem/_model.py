@@ -206,6 +206,17 @@ class Model(eqx.Module):
         return np.concatenate(ids).astype(np.int64)
 
 
+def partition(model: Model) -> tuple[Model, Model]:
+    """Split a model into ``(values, structure)`` for ``jax.jit``.
+
+    Values are the JAX arrays (the updatable numbers); structure is everything else,
+    notably the NumPy connectivity and DoF maps, which must stay concrete. Pass
+    ``values`` through ``jit``/``vmap`` and rebuild with ``eqx.combine(values, structure)``
+    inside; ``eqx.filter_jit`` on a whole model would trace the NumPy arrays too.
+    """
+    return eqx.partition(model, lambda x: isinstance(x, jax.Array))
+
+
 def block_masks(ids: np.ndarray, groups: Sequence[Sequence[int]]) -> np.ndarray:
     """0/1 matrix (n_groups, n_elements) telling which element of a block is in which group."""
     return np.stack([np.isin(ids, np.asarray(g, dtype=np.int64)) for g in groups]).astype(

@@ -1,0 +1,40 @@
+"""The command line: tables, JSON and errors."""
+
+import json
+
+import numpy as np
+from typer.testing import CliRunner
+
+import jaxfem
+from jaxfem.io import read_bdf
+from updating.cli import app
+
+runner = CliRunner()
+
+
+def test_modes_json_matches_library(tmp_path):
+    out = tmp_path / "modes.json"
+    result = runner.invoke(app, ["modes", "tests/data/frame_free.bdf", "-n", "5", "--json", str(out)])
+    assert result.exit_code == 0, result.output
+    data = json.loads(out.read_text())
+    model = jaxfem.build_model(read_bdf("tests/data/frame_free.bdf"))
+    lam, _ = jaxfem.eigh(*jaxfem.assemble(model), 5)
+    assert data["n_dof"] == model.n_dof
+    np.testing.assert_allclose(data["frequencies_hz"], jaxfem.frequencies_hz(lam), rtol=1e-12)
+    assert "f [Hz]" in result.output
+
+
+def test_demo_prints_modes():
+    result = runner.invoke(app, ["demo", "-n", "6"])
+    assert result.exit_code == 0, result.output
+    lines = [ln for ln in result.output.splitlines() if ln.strip()[:1].isdigit()]
+    freqs = [float(ln.split()[1]) for ln in lines]
+    assert len(freqs) == 6 and all(f > 0 for f in freqs) and freqs == sorted(freqs)
+
+
+def test_malformed_model_names_the_field(tmp_path):
+    bad = tmp_path / "bad.bdf"
+    bad.write_text("GRID,1,,0.,0.,abc\n")
+    result = runner.invoke(app, ["modes", str(bad)])
+    assert result.exit_code != 0
+    assert "bad.bdf:1" in str(result.exception) and "GRID" in str(result.exception)
