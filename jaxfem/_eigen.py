@@ -43,7 +43,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from ._matrix import AbstractSymmetricMatrix, DenseMatrix
-from ._model import check_float64
+from ._model import Opaque, check_float64
 
 DEGENERATE_RTOL = 1e-6
 
@@ -90,15 +90,8 @@ def eigh(
     if degenerate not in ("mean", "split"):
         raise ValueError(f"degenerate must be 'mean' or 'split', got {degenerate!r}")
     (kv, ks), (mv, ms) = _values_structure(K), _values_structure(M)
-    return _eigh(kv, mv, structure=_Opaque((ks, ms)), n_modes=n_modes, degenerate=degenerate,
+    return _eigh(kv, mv, structure=Opaque((ks, ms)), n_modes=n_modes, degenerate=degenerate,
                  rtol=float(rtol))
-
-
-class _Opaque:
-    """Hides operator structure (NumPy index maps) from tracing: a static, non-pytree leaf."""
-
-    def __init__(self, value):
-        self.value = value
 
 
 def _values_structure(a: AbstractSymmetricMatrix):

@@ -206,6 +206,13 @@ class Model(eqx.Module):
         return np.concatenate(ids).astype(np.int64)
 
 
+class Opaque:
+    """A static, non-pytree holder (hashed by identity): keeps NumPy structure out of tracing."""
+
+    def __init__(self, value):
+        self.value = value
+
+
 def partition(model: Model) -> tuple[Model, Model]:
     """Split a model into ``(values, structure)`` for ``jax.jit``.
 

@@ -1,0 +1,120 @@
+"""Modal residuals ε(θ) = z_e − z_a(θ) with in-loop pairing (thesis §3.2.2).
+
+The residual is a pytree for Optimistix: eigenvalue rows (eq. 3.12, normalised by λ_e,
+§3.2.2.3), eigenvector rows at the measured DoFs (eq. 3.21, model vector scaled by the
+modal scale factor, normalised by ‖φ_e‖), and the regularisation √μ·θ (eq. 3.4 with
+W_p = μ I). Test and model modes are paired inside the function with the jittable
+masked assignment, redone at every evaluation (footnote 1 of §3.2.2), so that the
+update survives mode crossing and stays vmappable; the pairing is a discrete choice and
+carries no derivative. Unpaired and passive test modes contribute zero rows.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Bool, Float
+
+import jaxfem
+from jaxfem import Model
+from jaxfem._model import Opaque
+
+from ._correlation import mac, pair_modes_masked
+from ._parameters import Parameterisation
+
+
+class Problem(eqx.Module):
+    """Everything the residual needs; ``values`` are traced, the rest is structure.
+
+    - ``lam_e`` (n_e,): measured eigenvalues (2π f)² in (rad/s)²; ``phi_e`` (n_s, n_e):
+      real measured shapes at the sensors; ``C`` (n_s, n_dof): observation matrix;
+    - ``active`` (n_e,) bool: modes in the fit; ``lam_weight`` (n_e,): eigenvalue-row
+      weights; ``mu``: regularisation; ``use_lam``/``use_phi``: residual kinds.
+    """
+
+    values: Model
+    structure: Opaque = eqx.field(static=True)  # the model's NumPy structure
+    parameterisation: Parameterisation
+    lam_e: Float[Array, " ne"]
+    phi_e: Float[Array, "ns ne"]
+    C: Float[Array, "ns ndof"]
+    active: Bool[Array, " ne"]
+    lam_weight: Float[Array, " ne"]
+    mu: Float[Array, ""]
+    n_model: int = eqx.field(static=True)
+    use_lam: bool = eqx.field(static=True)
+    use_phi: bool = eqx.field(static=True)
+    min_mac: float = eqx.field(static=True)
+    max_freq_dev: float = eqx.field(static=True)
+
+    def model(self, theta: Float[Array, " p"]) -> Model:
+        return self.parameterisation.apply(eqx.combine(self.values, self.structure.value), theta)
+
+
+class Evaluation(eqx.Module):
+    """Model modes paired with the test modes at one parameter point."""
+
+    lam_a: Float[Array, " ne"]  # paired model eigenvalue per test mode
+    phi_a: Float[Array, "ns ne"]  # paired model shape at the sensors
+    model_index: Array  # model mode per test mode, −1 if unpaired
+    paired: Bool[Array, " ne"]
+    mac: Float[Array, " ne"]
+
+
+def evaluate(theta: Float[Array, " p"], problem: Problem) -> Evaluation:
+    """Solve the model at θ and pair its modes with the test modes."""
+    K, M = jaxfem.assemble(problem.model(theta))
+    lam, phi = jaxfem.eigh(K, M, problem.n_model)
+    phi_s = problem.C @ phi
+    f_a = jaxfem.frequencies_hz(lam)
+    f_e = jnp.sqrt(problem.lam_e) / (2 * jnp.pi)
+    index, paired = pair_modes_masked(
+        jax.lax.stop_gradient(f_a), jax.lax.stop_gradient(phi_s), f_e, problem.phi_e,
+        min_mac=problem.min_mac, max_freq_dev=problem.max_freq_dev,
+    )
+    safe = jnp.where(paired, index, 0)
+    phi_p = phi_s[:, safe]
+    macs = jnp.diagonal(mac(jax.lax.stop_gradient(phi_p), problem.phi_e))
+    return Evaluation(lam[safe], phi_p, index, paired, jnp.where(paired, macs, 0.0))
+
+
+def residuals(theta: Float[Array, " p"], problem: Problem):
+    """ε(θ) as a dict pytree, and the :class:`Evaluation` as auxiliary output."""
+    ev = evaluate(theta, problem)
+    rows = ev.paired & problem.active
+    out = {}
+    if problem.use_lam:
+        eps = (problem.lam_e - ev.lam_a) / problem.lam_e  # eq. (3.12), normalised
+        out["eigenvalue"] = jnp.where(rows, problem.lam_weight * eps, 0.0)
+    if problem.use_phi:
+        phi_e = problem.phi_e
+        msf = jnp.sum(ev.phi_a * phi_e, axis=0) / jnp.sum(ev.phi_a * ev.phi_a, axis=0)
+        eps = (phi_e - msf * ev.phi_a) / jnp.linalg.norm(phi_e, axis=0)  # eq. (3.21)
+        out["eigenvector"] = jnp.where(rows[None, :], eps, 0.0)
+    out["regularisation"] = jnp.sqrt(problem.mu) * theta
+    return out, ev
+
+
+def auto_eigenvalue_weights(theta: Float[Array, " p"], problem: Problem) -> Float[Array, " ne"]:
+    """Eigenfrequency weighting of §5.2.4: per mode, the eigenvalue row is scaled so that
+    its gradient norm equals that of the mode's eigenvector rows (at θ)."""
+    unit = dataclasses.replace(problem, lam_weight=jnp.ones_like(problem.lam_weight),
+                               use_lam=True, use_phi=True)
+    jac = jax.jacfwd(lambda t: residuals(t, unit)[0])(theta)
+    g_lam = jnp.linalg.norm(jac["eigenvalue"], axis=-1)
+    g_phi = jnp.linalg.norm(jac["eigenvector"], axis=(0, 2))
+    return jnp.where(g_lam > 0, g_phi / jnp.where(g_lam > 0, g_lam, 1.0), 1.0)
+
+
+def prediction_errors(ev: Evaluation, lam_e: Float[Array, " ne"]) -> Float[Array, " ne"]:
+    """Frequency deviation Δf = (f_a − f_e)/f_e per test mode (eq. 4.1), NaN if unpaired."""
+    dev = jnp.sqrt(ev.lam_a / lam_e) - 1.0
+    return jnp.where(ev.paired, dev, jnp.nan)
+
+
+def as_numpy(ev: Evaluation) -> dict:
+    return {k: np.asarray(getattr(ev, k)) for k in ("lam_a", "model_index", "paired", "mac")}

@@ -1,0 +1,183 @@
+"""The iterative updating loop: regularised least squares with Optimistix (thesis §3.2).
+
+``update`` minimises ½‖ε(θ)‖² (eq. 3.4 with the weights inside ε) by Levenberg–Marquardt
+or Gauss–Newton (the step of eq. 3.11), stepping the Optimistix solver one iteration at
+a time so that each iteration's parameters, frequency deviations, MACs and cost are
+recorded. The Jacobian comes from the implicit-differentiation rule of ``jaxfem.eigh``
+(forward mode). Convergence: max |α_κ − α_κ₋₁| ≤ tolerance over an accepted step
+(thesis §4.2.5.1, footnote 8: 1e-3).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+
+import jaxfem
+from identification import ModalData, observation_matrix
+from jaxfem import Model
+from jaxfem._model import Opaque
+
+from ._correlation import pair_modes
+from ._parameters import ParameterSet, Parameterisation, parameterise
+from ._residuals import Problem, auto_eigenvalue_weights, evaluate, residuals
+
+
+@dataclass
+class Iteration:
+    """One accepted iterate: parameters, per-test-mode Δf and MAC (NaN if unpaired), cost."""
+
+    iteration: int
+    alpha: np.ndarray
+    freq_dev: np.ndarray
+    mac: np.ndarray
+    cost: float
+
+
+@dataclass
+class UpdateResult:
+    """Outcome of :func:`update`: updated model, factors, history, before/after pairings."""
+
+    model: Model
+    names: list[str]
+    alpha: np.ndarray
+    theta: np.ndarray
+    converged: bool
+    iterations: int
+    history: list[Iteration]
+    active: np.ndarray  # bool per test mode
+    before: object  # Pairing (Hungarian) of the initial model
+    after: object  # Pairing of the updated model
+    seconds: float
+    parameterisation: Parameterisation = field(repr=False)
+
+    def table(self) -> list[dict]:
+        """Parameters with their factors α (value = value₀·(1 + α))."""
+        return [{"name": n, "kind": p.kind, "alpha": float(a)} for n, p, a in
+                zip(self.names, self.parameterisation.parameters, self.alpha)]
+
+
+def _active_mask(test: ModalData, options) -> np.ndarray:
+    ids = np.arange(1, len(test.frequencies_hz) + 1)
+    active = np.ones(len(ids), bool) if options.active_modes is None else np.isin(ids, options.active_modes)
+    active &= ~np.isin(ids, options.passive_modes)
+    unknown = sorted(set(options.active_modes or ()) | set(options.passive_modes) - set(ids.tolist()))
+    if unknown:
+        raise ValueError(f"active/passive modes {unknown} are not test mode numbers 1..{len(ids)}")
+    if not active.any():
+        raise ValueError("no active test modes")
+    return active
+
+
+def build_problem(model: Model, test: ModalData, parameters: ParameterSet,
+                  *, sensors_C: np.ndarray | None = None) -> Problem:
+    """Assemble the :class:`Problem` (observation matrix, weights, pairing thresholds)."""
+    opts = parameters.options
+    model, param = parameterise(model, parameters)
+    C = observation_matrix(model, test.sensors)[0] if sensors_C is None else sensors_C
+    shapes = np.real(test.real().shapes) if np.iscomplexobj(test.shapes) else np.asarray(test.shapes)
+    n_free = model.n_dof - len(model.dofs.massless)
+    ne = len(test.frequencies_hz)
+    n_model = opts.n_model_modes or min(n_free, 2 * ne + 6)
+    values, structure = jaxfem.partition(model)
+    problem = Problem(
+        values=values,
+        structure=Opaque(structure),
+        parameterisation=param,
+        lam_e=jnp.asarray((2 * np.pi * np.asarray(test.frequencies_hz)) ** 2),
+        phi_e=jnp.asarray(shapes),
+        C=jnp.asarray(C),
+        active=jnp.asarray(_active_mask(test, opts)),
+        lam_weight=jnp.ones(ne),
+        mu=jnp.asarray(float(opts.regularisation)),
+        n_model=int(n_model),
+        use_lam=opts.residual in ("eigenvalue", "combined"),
+        use_phi=opts.residual in ("eigenvector", "combined"),
+        min_mac=float(opts.min_mac),
+        max_freq_dev=float(opts.max_freq_dev),
+    )
+    theta0 = jnp.zeros(len(param.parameters))
+    if opts.residual == "combined":
+        w = auto_eigenvalue_weights(theta0, problem) if opts.eigenvalue_weight == "auto" \
+            else jnp.full(ne, float(opts.eigenvalue_weight))
+        problem = eqx.tree_at(lambda p: p.lam_weight, problem, w)
+    return problem
+
+
+def _pairing(problem: Problem, theta, test: ModalData):
+    K, M = jaxfem.assemble(problem.model(theta))
+    lam, phi = jaxfem.eigh(K, M, problem.n_model)
+    return pair_modes(np.asarray(jaxfem.frequencies_hz(lam)), np.asarray(problem.C @ phi),
+                      np.asarray(test.frequencies_hz), np.asarray(problem.phi_e),
+                      min_mac=problem.min_mac, max_freq_dev=problem.max_freq_dev)
+
+
+def update(model: Model, test: ModalData, parameters: ParameterSet, *,
+           progress: Callable[[Iteration], None] | None = None) -> UpdateResult:
+    """Update ``model`` against measured modes ``test`` (thesis §3.2, Fig. 3.1).
+
+    **Arguments:** the nominal model, the measured modes (sensors labelled by grid and
+    direction), the parameters and options; ``progress`` is called after every
+    accepted iteration. **Returns:** an :class:`UpdateResult`.
+    """
+    start = time.perf_counter()
+    opts = parameters.options
+    problem = build_problem(model, test, parameters)
+    n_p = len(problem.parameterisation.parameters)
+    solver_cls = optx.LevenbergMarquardt if opts.solver == "levenberg-marquardt" else optx.GaussNewton
+    solver = solver_cls(rtol=1e-12, atol=1e-12)
+    fn = lambda theta, prob: residuals(theta, prob)  # noqa: E731
+    theta = jnp.zeros(n_p)
+    out_struct, aux_struct = jax.eval_shape(fn, theta, problem)
+    options = {"jac": "fwd"}
+    state = eqx.filter_jit(solver.init)(fn, theta, problem, options, out_struct, aux_struct, frozenset())
+    step = eqx.filter_jit(lambda t, s, p: solver.step(fn, t, p, options, s, frozenset()))
+    summary = eqx.filter_jit(lambda t, p: (residuals(t, p), evaluate(t, p)))
+
+    def record(k, theta):
+        (eps, _), ev = summary(theta, problem)
+        cost = 0.5 * sum(float(jnp.sum(v**2)) for v in jax.tree.leaves(eps))
+        dev = np.where(np.asarray(ev.paired), np.sqrt(np.asarray(ev.lam_a) / np.asarray(problem.lam_e)) - 1, np.nan)
+        it = Iteration(k, np.asarray(jnp.expm1(theta)), dev, np.where(np.asarray(ev.paired), np.asarray(ev.mac), np.nan), cost)
+        if progress:
+            progress(it)
+        return it
+
+    history = [record(0, theta)]
+    converged = False
+    for _ in range(opts.max_iterations * 4):  # rejected LM steps do not count as iterations
+        new_theta, state, _ = step(theta, state, problem)
+        if bool(jnp.all(new_theta == theta)):
+            if bool(state.terminate) if hasattr(state, "terminate") else False:
+                break
+            continue
+        change = float(jnp.max(jnp.abs(jnp.expm1(new_theta) - jnp.expm1(theta))))
+        theta = new_theta
+        history.append(record(len(history), theta))
+        if change <= opts.tolerance:
+            converged = True
+            break
+        if len(history) > opts.max_iterations:
+            break
+    final_model = problem.model(theta)
+    return UpdateResult(
+        model=final_model,
+        names=[p.name for p in problem.parameterisation.parameters],
+        alpha=np.asarray(jnp.expm1(theta)),
+        theta=np.asarray(theta),
+        converged=converged,
+        iterations=len(history) - 1,
+        history=history,
+        active=np.asarray(problem.active),
+        before=_pairing(problem, jnp.zeros(n_p), test),
+        after=_pairing(problem, theta, test),
+        seconds=time.perf_counter() - start,
+        parameterisation=problem.parameterisation,
+    )
