@@ -65,11 +65,16 @@ class Evaluation(eqx.Module):
     mac: Float[Array, " ne"]
 
 
-def evaluate(theta: Float[Array, " p"], problem: Problem) -> Evaluation:
-    """Solve the model at θ and pair its modes with the test modes."""
+def model_modes(theta: Float[Array, " p"], problem: Problem):
+    """Eigenvalues of the model at θ and its shapes at the sensors, ``(λ, C φ)``."""
     K, M = jaxfem.assemble(problem.model(theta))
     lam, phi = jaxfem.eigh(K, M, problem.n_model)
-    phi_s = problem.C @ phi
+    return lam, problem.C @ phi
+
+
+def evaluate(theta: Float[Array, " p"], problem: Problem) -> Evaluation:
+    """Solve the model at θ and pair its modes with the test modes."""
+    lam, phi_s = model_modes(theta, problem)
     f_a = jaxfem.frequencies_hz(lam)
     f_e = jnp.sqrt(problem.lam_e) / (2 * jnp.pi)
     index, paired = pair_modes_masked(
@@ -99,6 +104,7 @@ def residuals(theta: Float[Array, " p"], problem: Problem):
     return out, ev
 
 
+@eqx.filter_jit
 def auto_eigenvalue_weights(theta: Float[Array, " p"], problem: Problem) -> Float[Array, " ne"]:
     """Eigenfrequency weighting of §5.2.4: per mode, the eigenvalue row is scaled so that
     its gradient norm equals that of the mode's eigenvector rows (at θ)."""

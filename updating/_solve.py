@@ -27,7 +27,7 @@ from jaxfem._model import Opaque
 
 from ._correlation import pair_modes
 from ._parameters import ParameterSet, Parameterisation, parameterise
-from ._residuals import Problem, auto_eigenvalue_weights, evaluate, residuals
+from ._residuals import Problem, auto_eigenvalue_weights, model_modes, residuals
 
 
 @dataclass
@@ -112,9 +112,9 @@ def build_problem(model: Model, test: ModalData, parameters: ParameterSet,
 
 
 def _pairing(problem: Problem, theta, test: ModalData):
-    K, M = jaxfem.assemble(problem.model(theta))
-    lam, phi = jaxfem.eigh(K, M, problem.n_model)
-    return pair_modes(np.asarray(jaxfem.frequencies_hz(lam)), np.asarray(problem.C @ phi),
+    """Exact (Hungarian) pairing of the model at θ, for reports."""
+    lam, phi_s = eqx.filter_jit(model_modes)(theta, problem)
+    return pair_modes(np.asarray(jaxfem.frequencies_hz(lam)), np.asarray(phi_s),
                       np.asarray(test.frequencies_hz), np.asarray(problem.phi_e),
                       min_mac=problem.min_mac, max_freq_dev=problem.max_freq_dev)
 
@@ -139,10 +139,10 @@ def update(model: Model, test: ModalData, parameters: ParameterSet, *,
     options = {"jac": "fwd"}
     state = eqx.filter_jit(solver.init)(fn, theta, problem, options, out_struct, aux_struct, frozenset())
     step = eqx.filter_jit(lambda t, s, p: solver.step(fn, t, p, options, s, frozenset()))
-    summary = eqx.filter_jit(lambda t, p: (residuals(t, p), evaluate(t, p)))
+    summary = eqx.filter_jit(fn)
 
     def record(k, theta):
-        (eps, _), ev = summary(theta, problem)
+        eps, ev = summary(theta, problem)
         cost = 0.5 * sum(float(jnp.sum(v**2)) for v in jax.tree.leaves(eps))
         dev = np.where(np.asarray(ev.paired), np.sqrt(np.asarray(ev.lam_a) / np.asarray(problem.lam_e)) - 1, np.nan)
         it = Iteration(k, np.asarray(jnp.expm1(theta)), dev, np.where(np.asarray(ev.paired), np.asarray(ev.mac), np.nan), cost)
