@@ -16,7 +16,6 @@ import dataclasses
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import numpy as np
 from jaxtyping import Array, Bool, Float
 
 import jaxfem
@@ -63,6 +62,8 @@ class Evaluation(eqx.Module):
     model_index: Array  # model mode per test mode, −1 if unpaired
     paired: Bool[Array, " ne"]
     mac: Float[Array, " ne"]
+    lam_model: Float[Array, " nm"]  # all computed model eigenvalues
+    phi_model: Float[Array, "ns nm"]  # and their shapes at the sensors
 
 
 def model_modes(theta: Float[Array, " p"], problem: Problem):
@@ -84,7 +85,7 @@ def evaluate(theta: Float[Array, " p"], problem: Problem) -> Evaluation:
     safe = jnp.where(paired, index, 0)
     phi_p = phi_s[:, safe]
     macs = jnp.diagonal(mac(jax.lax.stop_gradient(phi_p), problem.phi_e))
-    return Evaluation(lam[safe], phi_p, index, paired, jnp.where(paired, macs, 0.0))
+    return Evaluation(lam[safe], phi_p, index, paired, jnp.where(paired, macs, 0.0), lam, phi_s)
 
 
 def residuals(theta: Float[Array, " p"], problem: Problem):
@@ -107,13 +108,15 @@ def residuals(theta: Float[Array, " p"], problem: Problem):
 @eqx.filter_jit
 def auto_eigenvalue_weights(theta: Float[Array, " p"], problem: Problem) -> Float[Array, " ne"]:
     """Eigenfrequency weighting of §5.2.4: per mode, the eigenvalue row is scaled so that
-    its gradient norm equals that of the mode's eigenvector rows (at θ)."""
+    its gradient norm equals that of the mode's eigenvector rows (at θ), never below 1:
+    frequencies keep at least their unweighted influence (the thesis' aim is that they
+    weigh no less than the shapes), also where the shapes do not depend on θ."""
     unit = dataclasses.replace(problem, lam_weight=jnp.ones_like(problem.lam_weight),
                                use_lam=True, use_phi=True)
     jac = jax.jacfwd(lambda t: residuals(t, unit)[0])(theta)
     g_lam = jnp.linalg.norm(jac["eigenvalue"], axis=-1)
     g_phi = jnp.linalg.norm(jac["eigenvector"], axis=(0, 2))
-    return jnp.where(g_lam > 0, g_phi / jnp.where(g_lam > 0, g_lam, 1.0), 1.0)
+    return jnp.maximum(1.0, jnp.where(g_lam > 0, g_phi / jnp.where(g_lam > 0, g_lam, 1.0), 1.0))
 
 
 def prediction_errors(ev: Evaluation, lam_e: Float[Array, " ne"]) -> Float[Array, " ne"]:
@@ -122,5 +125,3 @@ def prediction_errors(ev: Evaluation, lam_e: Float[Array, " ne"]) -> Float[Array
     return jnp.where(ev.paired, dev, jnp.nan)
 
 
-def as_numpy(ev: Evaluation) -> dict:
-    return {k: np.asarray(getattr(ev, k)) for k in ("lam_a", "model_index", "paired", "mac")}

@@ -27,7 +27,7 @@ from jaxfem._model import Opaque
 
 from ._correlation import pair_modes
 from ._parameters import ParameterSet, Parameterisation, parameterise
-from ._residuals import Problem, auto_eigenvalue_weights, model_modes, residuals
+from ._residuals import Problem, auto_eigenvalue_weights, residuals
 
 
 @dataclass
@@ -68,7 +68,7 @@ def _active_mask(test: ModalData, options) -> np.ndarray:
     ids = np.arange(1, len(test.frequencies_hz) + 1)
     active = np.ones(len(ids), bool) if options.active_modes is None else np.isin(ids, options.active_modes)
     active &= ~np.isin(ids, options.passive_modes)
-    unknown = sorted(set(options.active_modes or ()) | set(options.passive_modes) - set(ids.tolist()))
+    unknown = sorted((set(options.active_modes or ()) | set(options.passive_modes)) - set(ids.tolist()))
     if unknown:
         raise ValueError(f"active/passive modes {unknown} are not test mode numbers 1..{len(ids)}")
     if not active.any():
@@ -111,10 +111,9 @@ def build_problem(model: Model, test: ModalData, parameters: ParameterSet,
     return problem
 
 
-def _pairing(problem: Problem, theta, test: ModalData):
-    """Exact (Hungarian) pairing of the model at θ, for reports."""
-    lam, phi_s = eqx.filter_jit(model_modes)(theta, problem)
-    return pair_modes(np.asarray(jaxfem.frequencies_hz(lam)), np.asarray(phi_s),
+def _pairing(ev, test: ModalData, problem: Problem):
+    """Exact (Hungarian) pairing of all computed model modes, for reports."""
+    return pair_modes(np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model),
                       np.asarray(test.frequencies_hz), np.asarray(problem.phi_e),
                       min_mac=problem.min_mac, max_freq_dev=problem.max_freq_dev)
 
@@ -141,8 +140,11 @@ def update(model: Model, test: ModalData, parameters: ParameterSet, *,
     step = eqx.filter_jit(lambda t, s, p: solver.step(fn, t, p, options, s, frozenset()))
     summary = eqx.filter_jit(fn)
 
+    evaluations = []
+
     def record(k, theta):
         eps, ev = summary(theta, problem)
+        evaluations.append(ev)
         cost = 0.5 * sum(float(jnp.sum(v**2)) for v in jax.tree.leaves(eps))
         dev = np.where(np.asarray(ev.paired), np.sqrt(np.asarray(ev.lam_a) / np.asarray(problem.lam_e)) - 1, np.nan)
         it = Iteration(k, np.asarray(jnp.expm1(theta)), dev, np.where(np.asarray(ev.paired), np.asarray(ev.mac), np.nan), cost)
@@ -176,8 +178,8 @@ def update(model: Model, test: ModalData, parameters: ParameterSet, *,
         iterations=len(history) - 1,
         history=history,
         active=np.asarray(problem.active),
-        before=_pairing(problem, jnp.zeros(n_p), test),
-        after=_pairing(problem, theta, test),
+        before=_pairing(evaluations[0], test, problem),
+        after=_pairing(evaluations[-1], test, problem),
         seconds=time.perf_counter() - start,
         parameterisation=problem.parameterisation,
     )
