@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import json
+import warnings
 from importlib import resources
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, NoReturn
 
+import numpy as np
 import typer
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help=__doc__)
@@ -76,3 +78,320 @@ def demo(
     _print_table(result)
     if json_out:
         json_out.write_text(json.dumps(result, indent=2))
+
+
+# --- correlation and updating -------------------------------------------------------------
+
+
+def _fail(message: str) -> NoReturn:
+    """One-line error on stderr, exit code 2 (usage / input error), no traceback."""
+    typer.echo("error: " + " ".join(str(message).split()), err=True)
+    raise typer.Exit(2)
+
+
+def _echo_warnings(caught: list[warnings.WarningMessage]) -> None:
+    for w in caught:
+        typer.echo("warning: " + " ".join(str(w.message).split()), err=True)
+
+
+def _load_model(path: Path):
+    import jaxfem
+    from jaxfem.io import read_bdf
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            bulk = read_bdf(path)
+            model = jaxfem.build_model(bulk)
+        except (ValueError, OSError) as err:
+            _fail(f"cannot read model {path}: {err}")
+    _echo_warnings(caught)
+    if bulk.unknown:
+        typer.echo(f"warning: unsupported cards ignored: {', '.join(sorted(bulk.unknown))}", err=True)
+    return model
+
+
+def _load_test(path: Path):
+    """The measured modes of a universal file, as real normal modes."""
+    from identification import read_uff
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            modes = read_uff(path)["modes"]
+        except (ValueError, OSError, ImportError) as err:
+            _fail(f"cannot read test data {path}: {err}")
+    _echo_warnings(caught)
+    if modes is None:
+        _fail(f"test data {path}: no mode shapes (UFF dataset 55) in the file")
+    return modes.real()
+
+
+def _observation(model, test, path: Path) -> np.ndarray:
+    from identification import observation_matrix
+
+    try:
+        return observation_matrix(model, test.sensors)[0]
+    except ValueError as err:
+        _fail(f"test data {path}: {err}")
+
+
+def _n_model_modes(model, n_test: int, requested: int | None) -> int:
+    n_free = model.n_dof - len(model.dofs.massless)
+    return int(min(n_free, max(2 * n_test + 6, requested or 0)))
+
+
+def _model_modes(model, C: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Model frequencies (Hz) and shapes at the sensors ``C φ``."""
+    import jaxfem
+
+    lam, phi = jaxfem.eigh(*jaxfem.assemble(model), n)
+    return np.asarray(jaxfem.frequencies_hz(lam)), C @ np.asarray(phi)
+
+
+def _num(x) -> float | None:
+    """JSON number (NaN/inf → null)."""
+    x = float(x)
+    return x if np.isfinite(x) else None
+
+
+def _pairing_json(p) -> dict:
+    """Paired modes (numbered from 1), unpaired modes, warnings, RMS Δf and mean MAC."""
+    rows = [
+        {"test": t, "model": m, "f_test_hz": ft, "f_model_hz": fm, "freq_dev_pct": d, "mac": c}
+        for t, m, ft, fm, d, c in p.table() if m is not None
+    ]
+    dev = 100.0 * np.asarray(p.freq_dev, dtype=np.float64)
+    return {
+        "paired_modes": rows,
+        "unpaired_test": [int(j) + 1 for j in p.unpaired_test],
+        "unpaired_model": [int(i) + 1 for i in p.unpaired_model],
+        "warnings": list(p.warnings),
+        "rms_freq_dev_pct": _num(np.sqrt(np.mean(dev**2))) if dev.size else None,
+        "mean_mac": _num(np.mean(p.mac)) if dev.size else None,
+    }
+
+
+def _dev_per_test(p) -> np.ndarray:
+    """Δf in % per test mode, NaN where unpaired."""
+    dev = np.full(p.f_test.size, np.nan)
+    dev[np.asarray(p.test, dtype=np.int64)] = 100.0 * np.asarray(p.freq_dev, dtype=np.float64)
+    return dev
+
+
+def _labels(freqs) -> list[str]:
+    return [f"{i} ({f:.1f})" for i, f in enumerate(np.asarray(freqs).tolist(), 1)]
+
+
+def _print_pairing(p) -> None:
+    typer.echo(f"{'test':>5} {'model':>6} {'f_test [Hz]':>12} {'f_model [Hz]':>13} {'Δf [%]':>8} {'MAC':>6}")
+    for t, m, ft, fm, d, c in p.table():
+        if m is None:
+            typer.echo(f"{t:>5} {'–':>6} {ft:>12.4f} {'–':>13} {'–':>8} {'–':>6}")
+        else:
+            typer.echo(f"{t:>5} {m:>6} {ft:>12.4f} {fm:>13.4f} {d:>+8.2f} {c:>6.3f}")
+    for line in p.warnings:
+        typer.echo(f"warning: {line}", err=True)
+
+
+def _check_plots(plots: Path | None) -> None:
+    if plots is None:
+        return
+    from ._plots import require_matplotlib
+
+    try:
+        require_matplotlib()
+    except ImportError as err:
+        _fail(str(err))
+    if plots.exists() and not plots.is_dir():
+        _fail(f"--plots {plots} exists and is not a directory")
+
+
+def _write_json(path: Path, data: dict) -> None:
+    path.write_text(json.dumps(data, indent=2, allow_nan=False))
+    typer.echo(f"wrote {path}")
+
+
+@app.command()
+def correlate(
+    model_path: Annotated[Path, typer.Argument(metavar="MODEL.bdf", exists=True, dir_okay=False,
+                                               help="Nastran bulk data (SI units)")],
+    test_path: Annotated[Path, typer.Argument(metavar="TEST.uff", exists=True, dir_okay=False,
+                                              help="universal file with the measured modes (dataset 55)")],
+    json_out: Annotated[Path, typer.Option("--json", help="write results as JSON")],
+    plots: Annotated[Path | None, typer.Option("--plots", help="directory for PNG plots (needs matplotlib, the plot extra)")] = None,
+    n: Annotated[int | None, typer.Option("-n", "--n-modes",
+                                          help="model modes to compute (at least 2 × test modes + 6)")] = None,
+    min_mac: Annotated[float, typer.Option("--min-mac", help="pairing threshold on MAC")] = 0.65,
+    max_freq_dev: Annotated[float, typer.Option("--max-freq-dev", help="pairing threshold on |Δf| (fraction)")] = 0.30,
+) -> None:
+    """Correlate model and test modes: pairing by MAC and Δf, AutoMAC, COMAC."""
+    from . import _correlation as corr
+
+    _check_plots(plots)
+    model = _load_model(model_path)
+    test = _load_test(test_path)
+    C = _observation(model, test, test_path)
+    ne = test.n_modes
+    n_model = _n_model_modes(model, ne, n)
+    f_a, phi_a = _model_modes(model, C, n_model)
+    f_e, phi_e = np.asarray(test.frequencies_hz), np.asarray(test.shapes)
+    try:
+        pairing = corr.pair_modes(f_a, phi_a, f_e, phi_e, min_mac=min_mac, max_freq_dev=max_freq_dev)
+    except ValueError as err:
+        _fail(str(err))
+    auto = np.asarray(corr.automac(phi_e))
+    labels = test.sensors.labels
+    if pairing.test.size:
+        co = np.asarray(corr.comac(phi_a[:, pairing.model], phi_e[:, pairing.test]))
+        order = np.argsort(co, kind="stable")
+        comac_rows = [{"sensor": labels[i], "value": float(co[i])} for i in order]
+    else:
+        comac_rows = []
+    result = {"model": str(model_path), "test": str(test_path), "n_model_modes": n_model,
+              "min_mac": pairing.min_mac, "max_freq_dev": pairing.max_freq_dev,
+              **_pairing_json(pairing),
+              "automac": auto.tolist(), "comac": comac_rows}
+
+    typer.echo(f"model {model_path}: {model.n_dof} DoFs, {n_model} modes; test {test_path}: "
+               f"{ne} modes at {len(labels)} sensors")
+    typer.echo(f"pairing: MAC ≥ {pairing.min_mac:.2f}, |Δf| ≤ {100 * pairing.max_freq_dev:.0f} %")
+    _print_pairing(pairing)
+    if result["paired_modes"]:
+        typer.echo(f"paired {len(result['paired_modes'])}/{ne}: RMS Δf {result['rms_freq_dev_pct']:.2f} %, "
+                   f"mean MAC {result['mean_mac']:.3f}")
+    typer.echo("AutoMAC of the test shapes:")
+    typer.echo("      " + "".join(f"{j:>6}" for j in range(1, ne + 1)))
+    for i, row in enumerate(auto, 1):
+        typer.echo(f"{i:>6}" + "".join(f"{v:>6.2f}" for v in row))
+    typer.echo("COMAC per sensor (lowest first):")
+    for row in comac_rows:
+        typer.echo(f"  {row['sensor']:>12} {row['value']:.3f}")
+    _write_json(json_out, result)
+    if plots is not None:
+        from ._plots import plot_freq_dev, plot_mac
+
+        written = [
+            plot_mac(np.asarray(corr.mac(phi_a, phi_e)).T, _labels(f_e), _labels(f_a), plots / "mac.png",
+                     f"MAC: {test_path.name} vs {model_path.name}"),
+            plot_freq_dev(_dev_per_test(pairing), None, _labels(f_e), plots / "freq_dev.png"),
+        ]
+        typer.echo("wrote " + ", ".join(str(w) for w in written))
+
+
+@app.command()
+def update(
+    model_path: Annotated[Path, typer.Argument(metavar="MODEL.bdf", exists=True, dir_okay=False,
+                                               help="Nastran bulk data (SI units)")],
+    test_path: Annotated[Path, typer.Argument(metavar="TEST.uff", exists=True, dir_okay=False,
+                                              help="universal file with the measured modes (dataset 55)")],
+    params_path: Annotated[Path, typer.Option("--params", metavar="PARAMS.toml", exists=True, dir_okay=False,
+                                              help="updating parameters and options (TOML, schema in README)")],
+    json_out: Annotated[Path, typer.Option("--json", help="write results as JSON")],
+    plots: Annotated[Path | None, typer.Option("--plots", help="directory for PNG plots (needs matplotlib, the plot extra)")] = None,
+) -> None:
+    """Update model parameters so that the model modes match the test modes."""
+    from . import _correlation as corr
+    from ._parameters import ParameterSet, parameterise
+    from ._solve import update as run_update
+
+    _check_plots(plots)
+    try:
+        params = ParameterSet.from_toml(params_path)
+    except (ValueError, OSError) as err:
+        _fail(f"bad parameter file: {err}")
+    model = _load_model(model_path)
+    test = _load_test(test_path)
+    C = _observation(model, test, test_path)
+    try:
+        parameterise(model, params)
+    except ValueError as err:
+        _fail(f"{params_path}: {err}")
+    opts = params.options
+    ne = test.n_modes
+    names = params.names
+    last = {}
+
+    def progress(it) -> None:
+        alpha = np.asarray(it.alpha)
+        step = "–" if "alpha" not in last else f"{np.max(np.abs(alpha - last['alpha'])):.3e}"
+        last["alpha"] = alpha
+        typer.echo(f"iteration {it.iteration:3d}  cost {it.cost:.6e}  max|Δα| {step}", err=True)
+
+    try:
+        res = run_update(model, test, params, progress=progress)
+    except ValueError as err:
+        _fail(f"{params_path}: {err}")
+
+    active = np.asarray(res.active, dtype=bool)
+    param_rows = []
+    for p, a in zip(params.parameters, res.alpha):
+        lo, hi = p.bounds
+        param_rows.append({"name": p.name, "kind": p.kind, "alpha": float(a), "bounds": [lo, hi],
+                           "within_bounds": bool(lo <= a <= hi)})
+    result = {
+        "model": str(model_path), "test": str(test_path), "parameters_file": str(params_path),
+        "parameters": param_rows,
+        "converged": bool(res.converged),
+        "iterations": int(res.iterations),
+        "seconds": float(res.seconds),
+        "history": [
+            {"iteration": int(h.iteration),
+             "alpha": {name: float(a) for name, a in zip(names, np.asarray(h.alpha))},
+             "freq_dev_pct": [_num(100.0 * d) for d in np.asarray(h.freq_dev)],
+             "mac": [_num(m) for m in np.asarray(h.mac)],
+             "cost": float(h.cost)}
+            for h in res.history
+        ],
+        "before": _pairing_json(res.before),
+        "after": _pairing_json(res.after),
+        "active_modes": [int(j) + 1 for j in np.flatnonzero(active)],
+        "passive_modes": [int(j) + 1 for j in np.flatnonzero(~active)],
+    }
+
+    status = "converged" if res.converged else "NOT converged"
+    typer.echo(f"{status} after {res.iterations} iterations ({res.seconds:.1f} s; tolerance on max|Δα| "
+               f"{opts.tolerance:g})")
+    typer.echo(f"{'parameter':>12} {'kind':>10} {'α':>12} {'bounds':>16}  within")
+    for row in param_rows:
+        lo, hi = row["bounds"]
+        typer.echo(f"{row['name']:>12} {row['kind']:>10} {row['alpha']:>+12.6f} {f'[{lo:g}, {hi:g}]':>16}  "
+                   f"{'yes' if row['within_bounds'] else 'NO'}")
+        if not row["within_bounds"]:
+            typer.echo(f"warning: parameter {row['name']} α = {row['alpha']:+.4f} is outside its bounds "
+                       f"[{lo:g}, {hi:g}]", err=True)
+    before, after = res.before.table(), res.after.table()
+    typer.echo(f"{'test':>5} {'role':>7} {'f_test [Hz]':>12} | {'before: model':>13} {'f [Hz]':>10} "
+               f"{'Δf [%]':>8} {'MAC':>6} | {'after: model':>12} {'f [Hz]':>10} {'Δf [%]':>8} {'MAC':>6}")
+
+    def cells(row, width):
+        _, m, _, fm, d, c = row
+        if m is None:
+            return f"{'–':>{width}} {'–':>10} {'–':>8} {'–':>6}"
+        return f"{m:>{width}} {fm:>10.4f} {d:>+8.2f} {c:>6.3f}"
+
+    for j, (b, a) in enumerate(zip(before, after)):
+        role = "active" if active[j] else "passive"
+        typer.echo(f"{b[0]:>5} {role:>7} {b[2]:>12.4f} | {cells(b, 13)} | {cells(a, 12)}")
+    for line in res.after.warnings:
+        typer.echo(f"warning (after): {line}", err=True)
+    for key in ("before", "after"):
+        p = result[key]
+        if p["paired_modes"]:
+            typer.echo(f"{key}: paired {len(p['paired_modes'])}/{ne}, RMS Δf {p['rms_freq_dev_pct']:.3f} %, "
+                       f"mean MAC {p['mean_mac']:.4f}")
+    _write_json(json_out, result)
+    if plots is not None:
+        from ._plots import plot_convergence, plot_freq_dev, plot_mac
+
+        n_model = opts.n_model_modes or _n_model_modes(model, ne, None)
+        f_e, phi_e = np.asarray(test.frequencies_hz), np.asarray(test.shapes)
+        written = []
+        for key, m in (("before", model), ("after", res.model)):
+            f_a, phi_a = _model_modes(m, C, n_model)
+            written.append(plot_mac(np.asarray(corr.mac(phi_a, phi_e)).T, _labels(f_e), _labels(f_a),
+                                    plots / f"mac_{key}.png", f"MAC {key} updating"))
+        written.append(plot_freq_dev(_dev_per_test(res.before), _dev_per_test(res.after), _labels(f_e),
+                                     plots / "freq_dev.png", active=active))
+        written.append(plot_convergence(res.history, names, plots / "convergence.png", active=active))
+        typer.echo("wrote " + ", ".join(str(w) for w in written))
