@@ -51,6 +51,8 @@ class Parameter:
             raise ValueError(f"parameter {self.name!r}: give pids, eids or nodes")
         if self.nodes and self.kind not in ("k", "m"):
             raise ValueError(f"parameter {self.name!r}: nodes = [...] is only for kinds k and m")
+        if self.kind == "m" and self.pids:
+            raise ValueError(f"parameter {self.name!r}: kind m (CONM2) targets eids or nodes, not pids")
         if self.kind in _MATERIAL or self.kind in _SECTION:
             if self.eids or not self.pids:
                 raise ValueError(f"parameter {self.name!r}: kind {self.kind} needs pids = [...]")
@@ -219,8 +221,8 @@ def _scale_physical(model: Model, p: Parameter, factor) -> Model:
         return model
     if p.kind == "k":
         s, b = model.springs, model.bushes
-        srows = _target_rows(s, p)
-        brows = _target_rows(b, p)
+        srows = _target_rows(model, s, p)
+        brows = _target_rows(model, b, p)
         model = eqx.tree_at(lambda m: m.springs.k, model, _scale_rows(s.k, srows, factor))
         return eqx.tree_at(lambda m: m.bushes.k, model, _scale_rows(b.k, brows, factor))
     c = model.masses  # kind "m"
@@ -228,9 +230,11 @@ def _scale_physical(model: Model, p: Parameter, factor) -> Model:
     return eqx.tree_at(lambda m: m.masses.m, model, _scale_rows(c.m, rows, factor))
 
 
-def _target_rows(block, p: Parameter) -> np.ndarray:
+def _target_rows(model: Model, block, p: Parameter) -> np.ndarray:
+    """Springs or bushes named by eid or pid, or attached to one of ``p.nodes``."""
+    at_node = np.isin(model.node_ids[np.maximum(block.nodes, 0)], p.nodes) & (block.nodes >= 0)
     rows = np.union1d(_rows(block.ids, p.eids), _rows(block.pids, p.pids))
-    return rows
+    return np.union1d(rows, np.flatnonzero(at_node.any(axis=1)))
 
 
 def _element_group(model: Model, p: Parameter) -> np.ndarray:
@@ -300,7 +304,7 @@ def parameterise(model: Model, parameters: ParameterSet | Sequence[Parameter]) -
     for i, p in enumerate(params):
         empty = (p.kind in ("stiffness", "mass") and not len(_element_group(model, p)))
         if p.kind == "k":
-            empty = not (len(_target_rows(model.springs, p)) or len(_target_rows(model.bushes, p)))
+            empty = not (len(_target_rows(model, model.springs, p)) or len(_target_rows(model, model.bushes, p)))
         if empty:
             raise ValueError(f"parameter {p.name!r}: its target contains no element of kind {p.kind}")
     return model, Parameterisation(params, tuple(k_groups), tuple(m_groups), tuple(k_index), tuple(m_index))
