@@ -119,9 +119,4 @@ def auto_eigenvalue_weights(theta: Float[Array, " p"], problem: Problem) -> Floa
     return jnp.maximum(1.0, jnp.where(g_lam > 0, g_phi / jnp.where(g_lam > 0, g_lam, 1.0), 1.0))
 
 
-def prediction_errors(ev: Evaluation, lam_e: Float[Array, " ne"]) -> Float[Array, " ne"]:
-    """Frequency deviation Δf = (f_a − f_e)/f_e per test mode (eq. 4.1), NaN if unpaired."""
-    dev = jnp.sqrt(ev.lam_a / lam_e) - 1.0
-    return jnp.where(ev.paired, dev, jnp.nan)
-
 

@@ -146,7 +146,8 @@ def update(model: Model, test: ModalData, parameters: ParameterSet, *,
         eps, ev = summary(theta, problem)
         evaluations.append(ev)
         cost = 0.5 * sum(float(jnp.sum(v**2)) for v in jax.tree.leaves(eps))
-        dev = np.where(np.asarray(ev.paired), np.sqrt(np.asarray(ev.lam_a) / np.asarray(problem.lam_e)) - 1, np.nan)
+        ratio = np.maximum(np.asarray(ev.lam_a) / np.asarray(problem.lam_e), 0.0)  # unpaired rows hold mode 0
+        dev = np.where(np.asarray(ev.paired), np.sqrt(ratio) - 1, np.nan)
         it = Iteration(k, np.asarray(jnp.expm1(theta)), dev, np.where(np.asarray(ev.paired), np.asarray(ev.mac), np.nan), cost)
         if progress:
             progress(it)
