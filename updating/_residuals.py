@@ -117,6 +117,3 @@ def auto_eigenvalue_weights(theta: Float[Array, " p"], problem: Problem) -> Floa
     g_lam = jnp.linalg.norm(jac["eigenvalue"], axis=-1)
     g_phi = jnp.linalg.norm(jac["eigenvector"], axis=(0, 2))
     return jnp.maximum(1.0, jnp.where(g_lam > 0, g_phi / jnp.where(g_lam > 0, g_lam, 1.0), 1.0))
-
-
-
