@@ -15,9 +15,9 @@ from typer.testing import CliRunner
 
 import jaxfem
 from benchmarks.frames import frame_bdf
-from identification import ModalData, Sensors, observation_matrix, read_uff, write_uff
+from identification import FRFData, ModalData, Sensors, observation_matrix, read_uff, write_uff
 from jaxfem.io import read_bdf
-from updating import pair_modes
+from updating import pair_modes, predict_frf
 from updating._parameters import Parameter, ParameterSet, parameterise
 from updating._plots import plot_freq_dev, plot_mac
 from updating.cli import app
@@ -65,6 +65,12 @@ def case(tmp_path_factory):
     test = ModalData(np.asarray(jaxfem.frequencies_hz(lam)), C @ np.asarray(phi), sensors)
     uff = d / "test.uff"
     write_uff(uff, nodes=_nodes(model), modes=test)
+    # Measured FRFs of the truth (1 % modal damping, the CLI's default without test damping).
+    out, inp = Sensors.from_components([14, 27], [1, 2]), Sensors.from_components([27], [2])
+    freqs = np.linspace(5.0, 60.0, 111)
+    probe = FRFData(freqs, np.zeros((111, 2, 1)), out, inp, "receptance")
+    frf = FRFData(freqs, predict_frf(truth, probe, zeta=0.01), out, inp, "receptance")
+    write_uff(d / "frf.uff", nodes=_nodes(model), frfs=frf)
     return d, bdf, uff, model
 
 
@@ -119,7 +125,7 @@ def test_update_recovers_injected_factors(case):
     toml.write_text(PARAMS_TOML)
     out, plots = d / "update.json", d / "update_plots"
     result = runner.invoke(app, ["update", str(bdf), str(uff), "--params", str(toml), "--json", str(out),
-                                 "--plots", str(plots)])
+                                 "--plots", str(plots), "--frf", str(d / "frf.uff")])
     assert result.exit_code == 0, result.output
     data = json.loads(out.read_text())
     assert data["converged"] is True
@@ -144,7 +150,13 @@ def test_update_recovers_injected_factors(case):
 
     assert "iteration   1" in result.stderr and "max|Δα|" in result.stderr
     assert "active" in result.stdout and "converged" in result.stdout
-    _pngs_written(plots, ["mac_before.png", "mac_after.png", "freq_dev.png", "convergence.png"])
+    _pngs_written(plots, ["mac_before.png", "mac_after.png", "freq_dev.png", "convergence.png", "frf.png"])
+    # Validation by prediction: the updated model reproduces the measured FRFs.
+    frf = data["frf"]
+    assert frf["zeta"] == 0.01 and len(frf["pairs"]) == 2
+    for pair in frf["pairs"]:
+        assert pair["frac_after"] > 0.999 > pair["frac_before"]
+        assert pair["mean_abs_db_after"] < pair["mean_abs_db_before"]
 
 
 @pytest.mark.parametrize(

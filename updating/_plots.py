@@ -175,3 +175,18 @@ def plot_convergence(history, names: Sequence[str], path: str | Path, active=Non
     for ax in (ax1, ax2):
         ax.xaxis.get_major_locator().set_params(integer=True)
     return _save(fig, path)
+
+
+def plot_frf_overlay(freqs_hz, measured, curves: dict, label: str, path: str | Path, unit: str) -> Path:
+    """Magnitude of one measured FRF with model predictions (e.g. before/after updating)."""
+    fig = _figure(7.0, 4.0)
+    ax = fig.add_subplot(1, 1, 1)
+    ax.semilogy(freqs_hz, np.abs(measured), color="black", lw=1.6, label="measured")
+    for name, values in curves.items():
+        ax.semilogy(freqs_hz, np.abs(values), lw=1.1, label=name)
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel(f"|H| [{unit}]")
+    ax.set_title(f"FRF {label}")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    return _save(fig, path)

@@ -111,6 +111,43 @@ def _load_model(path: Path):
     return model
 
 
+def _frf_prediction(path: Path, test, initial, updated, plots: Path | None) -> dict:
+    """Measured FRFs against the initial and updated model's predictions (FRAC, dB)."""
+    from identification import read_uff
+
+    from ._prediction import frf_correlation, predict_frf
+
+    try:
+        frf = read_uff(path)["frfs"]
+    except (ValueError, OSError, ImportError) as err:
+        _fail(f"cannot read FRFs {path}: {err}")
+    if frf is None:
+        _fail(f"{path}: no FRFs (UFF dataset 58) in the file")
+    ratios = np.asarray(test.damping_ratios)
+    zeta = float(np.mean(ratios[ratios > 0])) if np.any(ratios > 0) else 0.01
+    try:
+        predicted = {key: predict_frf(m, frf, zeta=zeta) for key, m in (("before", initial), ("after", updated))}
+    except ValueError as err:
+        _fail(f"{path}: {err}")
+    corr = {key: frf_correlation(frf.values, h) for key, h in predicted.items()}
+    pairs = []
+    for o, out in enumerate(frf.outputs.labels):
+        for i, inp in enumerate(frf.inputs.labels):
+            pairs.append({"output": out, "input": inp,
+                          **{f"frac_{k}": float(corr[k]["frac"][o, i]) for k in corr},
+                          **{f"mean_abs_db_{k}": float(corr[k]["mean_abs_db"][o, i]) for k in corr}})
+            typer.echo(f"FRF {out} / {inp}: FRAC {pairs[-1]['frac_before']:.3f} → {pairs[-1]['frac_after']:.3f}, "
+                       f"mean |Δ| {pairs[-1]['mean_abs_db_before']:.2f} → {pairs[-1]['mean_abs_db_after']:.2f} dB")
+    if plots is not None:
+        from ._plots import plot_frf_overlay
+
+        unit = {"receptance": "m/N", "mobility": "m/(s·N)", "accelerance": "m/(s²·N)"}[frf.kind]
+        plot_frf_overlay(frf.frequencies_hz, frf.values[:, 0, 0],
+                         {"initial model": predicted["before"][:, 0, 0], "updated model": predicted["after"][:, 0, 0]},
+                         f"{frf.outputs.labels[0]} / {frf.inputs.labels[0]}", plots / "frf.png", unit)
+    return {"zeta": zeta, "kind": frf.kind, "pairs": pairs}
+
+
 def _load_test(path: Path):
     """The measured modes of a universal file, as real normal modes."""
     from identification import read_uff
@@ -289,8 +326,15 @@ def update(
                                               help="updating parameters and options (TOML, schema in README)")],
     json_out: Annotated[Path, typer.Option("--json", help="write results as JSON")],
     plots: Annotated[Path | None, typer.Option("--plots", help="directory for PNG plots (needs matplotlib, the plot extra)")] = None,
+    frf_path: Annotated[Path | None, typer.Option("--frf", exists=True, dir_okay=False,
+                                                  help="measured FRFs (UFF 58) to predict before/after")] = None,
 ) -> None:
-    """Update model parameters so that the model modes match the test modes."""
+    """Update model parameters so that the model modes match the test modes.
+
+    With ``--frf``, the measured FRFs are predicted by the initial and the updated model
+    (modal superposition, viscous ratio = mean measured modal damping, else 1 %) and
+    compared by FRAC and mean |Δ| in dB (validation by prediction, thesis §4.2.5.3).
+    """
     from . import _correlation as corr
     from ._parameters import ParameterSet, parameterise
     from ._solve import update as run_update
@@ -360,6 +404,8 @@ def update(
         if not row["within_bounds"]:
             typer.echo(f"warning: parameter {row['name']} α = {row['alpha']:+.4f} is outside its bounds "
                        f"[{lo:g}, {hi:g}]", err=True)
+    if frf_path is not None:
+        result["frf"] = _frf_prediction(frf_path, test, model, res.model, plots)
     before, after = res.before.table(), res.after.table()
     typer.echo(f"{'test':>5} {'role':>7} {'f_test [Hz]':>12} | {'before: model':>13} {'f [Hz]':>10} "
                f"{'Δf [%]':>8} {'MAC':>6} | {'after: model':>12} {'f [Hz]':>10} {'Δf [%]':>8} {'MAC':>6}")
