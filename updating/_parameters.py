@@ -167,10 +167,6 @@ class Parameterisation(eqx.Module):
     stiffness_index: tuple[int, ...] = eqx.field(static=True)
     mass_index: tuple[int, ...] = eqx.field(static=True)
 
-    def factors(self, theta: Float[Array, " p"]) -> Float[Array, " p"]:
-        """α = e^θ − 1 (> −1)."""
-        return jnp.expm1(theta)
-
     def apply(self, model: Model, theta: Float[Array, " p"]) -> Model:
         """The model with every parameter's factor applied; differentiable in θ."""
         scale = jnp.exp(theta)  # 1 + α
