@@ -35,6 +35,7 @@ from scipy.optimize import linear_sum_assignment  # noqa: E402
 
 import jaxfem  # noqa: E402
 from benchmarks.frames import SIZES, frame_bdf  # noqa: E402
+from benchmarks.perf_eigen import best_time  # noqa: E402
 from identification import ModalData, Sensors, observation_matrix  # noqa: E402
 from jaxfem.io import read_bdf, read_bdf_text  # noqa: E402
 from updating import Options, Parameter, ParameterSet, build_problem, parameterise, residuals  # noqa: E402
@@ -67,16 +68,6 @@ def simulated(model, sensors, params, n_modes):
     keep = np.flatnonzero(f > 3.0)[:n_modes]  # elastic modes only (GARTEUR: 6 free/suspension)
     C, _ = observation_matrix(model, sensors)
     return ModalData(f[keep], np.asarray(C @ phi)[:, keep], sensors), C
-
-
-def best_time(fn, repeat):
-    jax.block_until_ready(fn())
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        jax.block_until_ready(fn())
-        times.append(time.perf_counter() - t)
-    return min(times)
 
 
 def jaxfem_step(problem, n_p):

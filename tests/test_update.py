@@ -1,6 +1,5 @@
 """Updating on a small 3-D frame: recovery, pairing inside the loop, noise, prediction."""
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -11,7 +10,7 @@ from identification import FRFData, ModalData, Sensors, observation_matrix
 from jaxfem.io import read_bdf_text
 from updating._parameters import Options, Parameter, ParameterSet, parameterise
 from updating._prediction import frf_correlation, predict_frf
-from updating._residuals import residuals
+from updating import Noise, parameter_std
 from updating._solve import build_problem, update
 
 TRUE_ALPHA = np.array([0.15, -0.10, 0.08, -0.05])
@@ -83,11 +82,11 @@ def test_pairing_survives_mode_crossing():
 def test_noise_within_derived_tolerance(setup):
     """1 % relative shape noise and 0.2 % frequency noise.
 
-    Tolerance from first-order propagation: with residual Jacobian J (weights included)
-    and residual noise covariance Σ (frequency noise σ_f gives σ_λ/λ = 2σ_f on the
-    eigenvalue rows times their weights; a relative shape error σ_φ on component i gives
-    σ_φ|φ_e,i|/‖φ_e‖ on the eigenvector rows), Cov(θ) = J⁺ Σ J⁺ᵀ; each factor must lie
-    within 5σ of the truth (σ from that covariance, α ≈ θ to first order).
+    Tolerance from first-order propagation (``updating.parameter_std``): with the weighted
+    residual Jacobian J at the truth and the residual noise covariance Σ (frequency noise
+    σ_f gives σ_λ/λ = 2σ_f on the eigenvalue rows times their weights; a relative shape
+    error σ_φ on component i gives σ_φ|φ_e,i|/‖φ_e‖ on the eigenvector rows),
+    Cov θ = J⁺ Σ J⁺ᵀ and σ_α = e^θ σ_θ; each factor must lie within 5σ of the truth.
     """
     model, params, _, f, shapes, sensors = setup
     rng = np.random.default_rng(1)
@@ -99,15 +98,10 @@ def test_noise_within_derived_tolerance(setup):
     res = update(model, test, pset)
     problem = build_problem(model, ModalData(f[:10], shapes[:, :10], sensors), pset)
     theta = jnp.log1p(jnp.asarray(TRUE_ALPHA))
-    jac = jax.jit(jax.jacfwd(lambda t: residuals(t, problem)[0]))(theta)
-    J = np.vstack([np.asarray(jac["eigenvalue"]), np.asarray(jac["eigenvector"]).reshape(-1, len(params))])
-    sd = np.concatenate([2 * sigma_f * np.asarray(problem.lam_weight),
-                         (sigma_phi * np.abs(shapes[:, :10]) / np.linalg.norm(shapes[:, :10], axis=0)).ravel()])
-    pinv = np.linalg.pinv(J)
-    sigma_theta = np.sqrt(np.diag(pinv @ np.diag(sd**2) @ pinv.T))
-    err = np.abs(np.log1p(res.alpha) - np.asarray(theta))
-    assert np.all(err <= 5 * sigma_theta), (err, sigma_theta)
-    assert np.all(sigma_theta < 0.05)  # the tolerance is meaningful, not vacuous
+    sigma = parameter_std(problem, theta, Noise(shape=sigma_phi, frequency=2 * sigma_f))  # σ_λ/λ = 2σ_f
+    err = np.abs(res.alpha - TRUE_ALPHA)
+    assert np.all(err <= 5 * sigma), (err, sigma)
+    assert np.all(sigma < 0.05)  # the tolerance is meaningful, not vacuous
 
 
 def test_passive_modes_and_frf_prediction_improve(setup):

@@ -15,7 +15,9 @@ from ._sensitivity import Identifiability as Identifiability
 from ._sensitivity import Noise as Noise
 from ._sensitivity import Recovery as Recovery
 from ._sensitivity import Sensitivities as Sensitivities
+from ._sensitivity import Noise as Noise
 from ._sensitivity import identifiability as identifiability
+from ._sensitivity import parameter_std as parameter_std
 from ._sensitivity import sensitivities as sensitivities
 from ._sensitivity import test_run as test_run
 from ._parameters import Options as Options

@@ -301,8 +301,8 @@ class Recovery:
         return "\n".join(lines)
 
 
-def _alpha_std(problem: Problem, theta: Float[Array, " p"], noise: Noise) -> np.ndarray:
-    """Linearised standard deviation of α from the simulated noise: Cov θ = J⁺ Σ J⁺ᵀ,
+def parameter_std(problem: Problem, theta: Float[Array, " p"], noise: Noise) -> np.ndarray:
+    """Linearised standard deviation of the factors α at θ for measurement noise: Cov θ = J⁺ Σ J⁺ᵀ,
     Σ = diag(σ²) with σ = w σ_freq per eigenvalue row and σ_shape |φ_e,ij| / ‖φ_e,j‖ per
     eigenvector row (eqs. 3.12, 3.21); σ_α = e^θ σ_θ."""
     jac, ev = _jacobian(problem, theta)
@@ -355,7 +355,7 @@ def test_run(
     problem = build_problem(model, simulated, parameters)
     tolerance = np.full(n_p, float(tol))
     if noise is not None:
-        tolerance = np.maximum(tolerance, 3.0 * _alpha_std(problem, jnp.asarray(result.theta), noise))
+        tolerance = np.maximum(tolerance, 3.0 * parameter_std(problem, jnp.asarray(result.theta), noise))
     error = np.abs(result.alpha - errors)
     return Recovery(parameters.names, errors, result.alpha, error, tolerance, error <= tolerance,
                     result.converged, identifiability(problem), simulated, result)
