@@ -56,6 +56,7 @@ class UpdateResult:
     before: object  # Pairing (Hungarian) of the initial model
     after: object  # Pairing of the updated model
     seconds: float
+    sensor_modes: dict  # "before"/"after": (model frequencies in Hz, shapes at the sensors)
     parameterisation: Parameterisation = field(repr=False)
 
     def table(self) -> list[dict]:
@@ -182,5 +183,7 @@ def update(model: Model, test: ModalData, parameters: ParameterSet, *,
         before=_pairing(evaluations[0], test, problem),
         after=_pairing(evaluations[-1], test, problem),
         seconds=time.perf_counter() - start,
+        sensor_modes={key: (np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model))
+                      for key, ev in (("before", evaluations[0]), ("after", evaluations[-1]))},
         parameterisation=problem.parameterisation,
     )

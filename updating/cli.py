@@ -346,7 +346,7 @@ def update(
         _fail(f"bad parameter file: {err}")
     model = _load_model(model_path)
     test = _load_test(test_path)
-    C = _observation(model, test, test_path)
+    _observation(model, test, test_path)  # unknown sensor grids: exit 2 naming them
     try:
         parameterise(model, params)
     except ValueError as err:
@@ -430,11 +430,10 @@ def update(
     if plots is not None:
         from ._plots import plot_convergence, plot_freq_dev, plot_mac
 
-        n_model = opts.n_model_modes or _n_model_modes(model, ne, None)
         f_e, phi_e = np.asarray(test.frequencies_hz), np.asarray(test.shapes)
         written = []
-        for key, m in (("before", model), ("after", res.model)):
-            f_a, phi_a = _model_modes(m, C, n_model)
+        for key in ("before", "after"):
+            f_a, phi_a = res.sensor_modes[key]
             written.append(plot_mac(np.asarray(corr.mac(phi_a, phi_e)).T, _labels(f_e), _labels(f_a),
                                     plots / f"mac_{key}.png", f"MAC {key} updating"))
         written.append(plot_freq_dev(_dev_per_test(res.before), _dev_per_test(res.after), _labels(f_e),
