@@ -190,3 +190,181 @@ def plot_frf_overlay(freqs_hz, measured, curves: dict, label: str, path: str | P
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
     return _save(fig, path)
+
+
+def _values_array(values: dict | None, keys) -> np.ndarray:
+    """``values[k]`` per key (NaN where absent or None)."""
+    if values is None:
+        return np.full(len(keys), np.nan)
+    out = [values.get(int(k)) for k in keys]
+    return np.array([np.nan if v is None else float(v) for v in out], dtype=np.float64)
+
+
+def plot_structure(
+    model,
+    element_values: dict[int, float] | None = None,
+    node_values: dict[int, float] | None = None,
+    *,
+    title: str = "",
+    label: str = "indicator",
+    ax=None,
+):
+    """3-D wireframe of a :class:`jaxfem.Model`, optionally coloured by an indicator.
+
+    Beams, rods, bushes and two-node springs are lines between their grids, coloured
+    by ``element_values[eid]`` (elements without a value: thin, light grey);
+    grounded springs are triangles and CONM2 masses squares at their grid. Nodes in
+    ``node_values`` (keys: grid ids) are dots sized and coloured by the value, the
+    three largest annotated with their grid id. Keys not in the model are ignored.
+    **Arguments:** the model; the two dicts (None: plain geometry); a title; the
+    colour bar label; ``ax``: an existing 3-D axes (None: a new figure).
+    **Returns:** the figure.
+    """
+    from matplotlib import colormaps
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+    if ax is None:
+        fig = _figure(7.0, 6.0)
+        ax = fig.add_subplot(projection="3d")
+    elif getattr(ax, "name", None) != "3d":
+        raise ValueError("ax must be a 3-D axes (projection='3d')")
+    fig = ax.get_figure()
+    xyz = np.asarray(model.xyz, dtype=np.float64)
+    node_ids = np.asarray(model.node_ids)
+    rows, eids = [], []
+    for group in (model.beams, model.rods, model.bushes, model.springs):
+        n = np.asarray(group.nodes).reshape(-1, 2)
+        keep = (n >= 0).all(axis=1)
+        rows.append(n[keep])
+        eids.append(np.asarray(group.ids)[keep])
+    rows, eids = np.concatenate(rows), np.concatenate(eids)
+    cmap = colormaps["viridis"]
+
+    ev = _values_array(element_values, eids)
+    has = np.isfinite(ev)
+    enorm = Normalize(*(np.nanmin(ev[has]), np.nanmax(ev[has])) if has.any() else (0.0, 1.0))
+    plain = "0.3" if element_values is None else "0.8"
+    colours = [cmap(enorm(v)) if h else plain for v, h in zip(ev, has)]
+    widths = np.where(has, 2.2, 0.9 if element_values is None else 0.6)
+    lines = Line3DCollection(xyz[rows], colors=colours, linewidths=widths)
+    ax.add_collection3d(lines)
+    if has.any():
+        fig.colorbar(ScalarMappable(enorm, cmap), ax=ax, label=label, shrink=0.6)
+
+    springs = np.asarray(model.springs.nodes).reshape(-1, 2)
+    grounded = springs[(springs < 0).any(axis=1)].max(axis=1)
+    grounded = grounded[grounded >= 0]
+    if grounded.size:
+        p = xyz[grounded]
+        ax.scatter(p[:, 0], p[:, 1], p[:, 2], marker="v", s=110, facecolors="none", edgecolors="tab:red",
+                   linewidths=1.5, depthshade=False, label="spring to ground")
+    masses = np.asarray(model.masses.nodes).reshape(-1)
+    if masses.size:
+        p = xyz[masses]
+        ax.scatter(p[:, 0], p[:, 1], p[:, 2], marker="s", s=110, facecolors="none", edgecolors="tab:orange",
+                   linewidths=1.5, depthshade=False, label="CONM2")
+
+    if node_values:
+        nv = _values_array(node_values, node_ids)
+        sel = np.flatnonzero(np.isfinite(nv))
+        if sel.size:
+            v = nv[sel]
+            nnorm = Normalize(v.min(), v.max())
+            sizes = 15.0 + 165.0 * np.clip(nnorm(v), 0.0, 1.0)
+            p = xyz[sel]
+            ax.scatter(p[:, 0], p[:, 1], p[:, 2], c=v, cmap=cmap, norm=nnorm, s=sizes,
+                       edgecolors="black", linewidths=0.4, depthshade=False)
+            if not has.any():
+                fig.colorbar(ScalarMappable(nnorm, cmap), ax=ax, label=label, shrink=0.6)
+            for i in sel[np.argsort(-v)[:3]]:
+                ax.text(*xyz[i], f"   {int(node_ids[i])}", fontsize=8, fontweight="bold", zorder=10)
+    elif node_values is None and element_values is None:
+        ax.scatter(xyz[:, 0], xyz[:, 1], xyz[:, 2], s=4, color="black")
+
+    lo, hi = xyz.min(axis=0), xyz.max(axis=0)
+    span = hi - lo
+    pad = np.maximum(span, 0.02 * max(span.max(), 1e-9))
+    mid = 0.5 * (lo + hi)
+    ax.set_xlim(mid[0] - pad[0] / 2, mid[0] + pad[0] / 2)
+    ax.set_ylim(mid[1] - pad[1] / 2, mid[1] + pad[1] / 2)
+    ax.set_zlim(mid[2] - pad[2] / 2, mid[2] + pad[2] / 2)
+    ax.set_box_aspect(tuple(pad))
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_zlabel("z [m]")
+    if grounded.size or masses.size:
+        ax.legend(fontsize=7, loc="upper left")
+    if title:
+        ax.set_title(title)
+    return fig
+
+
+def _runs(values) -> str:
+    """``[201, 202, 203, 207]`` → ``"201-203, 207"``."""
+    v = sorted(int(x) for x in values)
+    parts, start = [], 0
+    for i in range(1, len(v) + 1):
+        if i == len(v) or v[i] != v[i - 1] + 1:
+            parts.append(str(v[start]) if i - start == 1 else
+                         f"{v[start]}, {v[i - 1]}" if i - start == 2 else f"{v[start]}-{v[i - 1]}")
+            start = i
+    return ", ".join(parts)
+
+
+def effect_where(effect: dict) -> str:
+    """``"pid 41"``, ``"node 1029"``, ``"eids 201-205"``: the non-empty id lists of an effect."""
+    out = []
+    for key, one in (("pids", "pid"), ("eids", "eid"), ("nodes", "node")):
+        ids = list(effect.get(key) or [])
+        if ids:
+            out.append(f"{one if len(ids) == 1 else key} {_runs(ids)}")
+    return " ".join(out)
+
+
+def _finite(value) -> bool:
+    return value is not None and np.isfinite(float(value))
+
+
+def plot_effect_ranking(effects: list[dict]):
+    """Held-out RMS Δf [%] before / after each candidate effect, best at the top.
+
+    **Arguments:** ``effects``: dicts with ``kind``, ``pids``/``eids``/``nodes``,
+    ``score``, ``heldout_rms_freq_dev_pct_before`` and ``..._after`` (a missing key
+    skips that bar), best first or ordered by ``rank``; at most 12 are drawn.
+    **Returns:** the figure.
+    """
+    if effects and all("rank" in e for e in effects):
+        effects = sorted(effects, key=lambda e: e["rank"])
+    effects = list(effects)[:12]
+    fig = _figure(7.5, 1.4 + 0.45 * max(len(effects), 1))
+    ax = fig.add_subplot()
+    if not effects:
+        ax.text(0.5, 0.5, "no candidate effects", ha="center", va="center", transform=ax.transAxes)
+        ax.set_axis_off()
+        return fig
+    y = np.arange(len(effects))[::-1].astype(np.float64)
+    h = 0.38
+    series = (("before", "tab:orange", +h / 2), ("after", "tab:blue", -h / 2))
+    top = 0.0
+    for name, colour, dy in series:
+        key = f"heldout_rms_freq_dev_pct_{name}"
+        first = True
+        for yi, e in zip(y, effects):
+            if _finite(e.get(key)):
+                ax.barh(yi + dy, float(e[key]), h, color=colour, edgecolor="black", linewidth=0.5,
+                        label=name if first else None)
+                top, first = max(top, float(e[key])), False
+    for yi, e in zip(y, effects):
+        if _finite(e.get("score")):
+            ax.text(0.99, yi, f"score {float(e['score']):.3g}", ha="right", va="center", fontsize=8,
+                    transform=ax.get_yaxis_transform())
+    ax.set_xlim(0.0, 1.3 * top if top > 0 else 1.0)
+    ax.set_yticks(y, [f"{e.get('kind', '?')} {effect_where(e)}".strip() for e in effects])
+    ax.set_xlabel("held-out RMS Δf [%]")
+    ax.set_title("Candidate effects")
+    ax.grid(axis="x", alpha=0.3)
+    if ax.get_legend_handles_labels()[0]:
+        fig.legend(loc="outside lower center", ncols=2, fontsize=8)
+    return fig
