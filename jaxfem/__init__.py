@@ -11,6 +11,8 @@ from ._matrix import DenseMatrix as DenseMatrix
 from ._matrix import ElementMatrix as ElementMatrix
 from ._model import DofMap as DofMap
 from ._model import Model as Model
+from ._model import Viscoelastic as Viscoelastic
+from ._modes import modes as modes
 from ._model import correct as correct
 from ._model import partition as partition
 from ._damping import rayleigh as rayleigh

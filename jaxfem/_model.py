@@ -163,6 +163,24 @@ class DofMap(eqx.Module):
     n_dof: int = eqx.field(static=True)
 
 
+class Viscoelastic(eqx.Module):
+    """A frequency-dependent stiffness law on a group of elements (a visco-elastic layer).
+
+    The stiffness of the weighted elements is ``K_g·(1 + a·ln(f/f_ref))`` at frequency f
+    (Hz): the modulus law ``E(f) = E0 (1 + a ln(f/f_ref))``, a straight line in log f as
+    for visco-elastic materials in their transition region (Nashif, Jones & Henderson
+    1985, ch. 3). ``weights`` per stiffness block (beams, rods, springs, bushes): 1 for
+    elements of the layer, 0 elsewhere (traced, so candidate groups can be batched).
+    """
+
+    beams: Float[Array, " nb"]
+    rods: Float[Array, " nr"]
+    springs: Float[Array, " ns"]
+    bushes: Float[Array, " nu"]
+    a: Float[Array, ""]
+    f_ref: Float[Array, ""]
+
+
 class Model(eqx.Module):
     """A structural model: grids, elements by type, properties, materials, constraints.
 
@@ -183,6 +201,11 @@ class Model(eqx.Module):
     masses: Masses
     dofs: DofMap
     lumped: bool = eqx.field(static=True)  # PARAM COUPMASS: False = consistent mass
+    viscoelastic: Viscoelastic | None = None  # frequency-dependent stiffness, see jaxfem.modes
+
+    def with_effect(self, effect) -> Model:
+        """This model with a physical effect added (``updating.Effect``; see its ``apply``)."""
+        return effect.apply(self)
 
     @property
     def n_dof(self) -> int:

@@ -1,0 +1,144 @@
+"""Structural edits of a built :class:`jaxfem.Model` (new grids, springs, masses, releases).
+
+Used to add physical effects to a model (a flexible joint, a missing mass, a support
+spring) without going back to the bulk data. Every edit returns a new model; the DoF
+map is extended in place (new independent DoFs are numbered after the existing ones)
+and the massless/auto-SPC bookkeeping is redone by :func:`refresh`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from ._assembly import finalize_dofs
+from ._model import COMPONENTS, Bushes, DofMap, Masses, Model, Springs
+
+
+def _new_id(existing: np.ndarray, start: int) -> int:
+    return int(max(start, int(np.max(existing, initial=0)) + 1))
+
+
+def _widen(dofs: DofMap, width: int, n_new: int) -> DofMap:
+    """DoF map with at least ``width`` columns and room for ``n_new`` more DoFs (padding moved)."""
+    index, coef = dofs.index, dofs.coef
+    if index.shape[1] < width:
+        pad = width - index.shape[1]
+        index = np.pad(index, ((0, 0), (0, pad)), constant_values=dofs.n_dof)
+        coef = np.pad(coef, ((0, 0), (0, 0), (0, pad)))
+    index = np.where(index == dofs.n_dof, dofs.n_dof + n_new, index)
+    return DofMap(index=index, coef=coef, labels=dofs.labels, massless=dofs.massless,
+                  auto_spc=dofs.auto_spc, n_dof=dofs.n_dof + n_new)
+
+
+def _own_dofs(model: Model, row: int) -> DofMap:
+    """The grid in ``row`` gets its own DoF for every component (existing own DoFs kept):
+    an SPC or an RBE2 dependency on it is removed."""
+    dofs = model.dofs
+    node = int(model.node_ids[row])
+    own = {int(c): i for i, (n, c) in enumerate(dofs.labels) if n == node}
+    missing = [c for c in range(1, COMPONENTS + 1) if c not in own]
+    dofs = _widen(dofs, COMPONENTS, len(missing))
+    first = dofs.n_dof - len(missing)
+    own.update({c: first + k for k, c in enumerate(missing)})
+    index, coef = dofs.index.copy(), dofs.coef.copy()
+    index[row] = dofs.n_dof
+    coef[row] = 0.0
+    for c in range(1, COMPONENTS + 1):
+        index[row, c - 1] = own[c]
+        coef[row, c - 1, c - 1] = 1.0
+    labels = np.concatenate([dofs.labels, np.array([[node, c] for c in missing], dtype=np.int64).reshape(-1, 2)])
+    return DofMap(index=index, coef=coef, labels=labels, massless=dofs.massless,
+                  auto_spc=dofs.auto_spc, n_dof=dofs.n_dof)
+
+
+def release(model: Model, node: int) -> Model:
+    """Free every constrained or RBE2-dependent component of grid ``node``: the grid gets
+    six independent DoFs. Elements or constraints that should hold it must be added."""
+    row = int(model.node_index([node])[0])
+    return eqx.tree_at(lambda m: m.dofs, model, _own_dofs(model, row))
+
+
+def add_grid(model: Model, xyz: Sequence[float], node: int | None = None) -> tuple[Model, int]:
+    """A new grid at ``xyz`` (m) with six independent DoFs; returns ``(model, grid id)``."""
+    node = _new_id(model.node_ids, 1) if node is None else int(node)
+    if node in set(model.node_ids.tolist()):
+        raise ValueError(f"grid {node} already exists")
+    xyz = np.asarray(xyz, dtype=np.float64).reshape(1, 3)
+    dofs = model.dofs
+    index = np.concatenate([dofs.index, np.full((1, dofs.index.shape[1]), dofs.n_dof, np.int64)])
+    coef = np.concatenate([dofs.coef, np.zeros((1,) + dofs.coef.shape[1:])])
+    grown = eqx.tree_at(
+        lambda m: (m.node_ids, m.xyz, m.dofs), model,
+        (np.append(model.node_ids, node), np.concatenate([model.xyz, xyz]),
+         DofMap(index=index, coef=coef, labels=dofs.labels, massless=dofs.massless,
+                auto_spc=dofs.auto_spc, n_dof=dofs.n_dof)),
+    )
+    return eqx.tree_at(lambda m: m.dofs, grown, _own_dofs(grown, len(model.node_ids))), node
+
+
+def reconnect(model: Model, eids: Sequence[int], old: int, new: int) -> Model:
+    """Elements ``eids`` (beams, rods, bushes) attached to grid ``old`` are moved to grid ``new``."""
+    old_row, new_row = model.node_index([old, new])
+    wanted = np.asarray(eids, dtype=np.int64)
+    for name in ("beams", "rods", "bushes"):
+        block = getattr(model, name)
+        hit = np.isin(block.ids, wanted)[:, None] & (block.nodes == old_row)
+        if hit.any():
+            model = eqx.tree_at(lambda m: getattr(m, name).nodes, model, np.where(hit, new_row, block.nodes))
+    return model
+
+
+def add_bush(model: Model, node_a: int, node_b: int, k: Sequence[float], eid: int | None = None,
+             pid: int = 0) -> tuple[Model, int]:
+    """A CBUSH with stiffnesses ``k`` (k1..k6 in N/m and N·m/rad, basic axes) between two grids."""
+    rows = model.node_index([node_a, node_b])
+    b = model.bushes
+    eid = _new_id(model.element_ids(), 1) if eid is None else int(eid)
+    new = Bushes(
+        ids=np.append(b.ids, eid), pids=np.append(b.pids, pid),
+        nodes=np.concatenate([b.nodes, rows[None, :]]),
+        axes=jnp.concatenate([b.axes, jnp.eye(3)[None]]),
+        k=jnp.concatenate([b.k, jnp.asarray(k, dtype=jnp.float64).reshape(1, 6)]),
+        s=jnp.append(b.s, 0.5), k_scale=jnp.append(b.k_scale, 1.0),
+    )
+    return eqx.tree_at(lambda m: m.bushes, model, new), eid
+
+
+def add_ground_springs(model: Model, node: int, k: Sequence[float], components: Sequence[int] = (1, 2, 3),
+                       ) -> tuple[Model, list[int]]:
+    """Scalar springs from grid ``node`` to ground, one per component (CELAS2); returns the eids."""
+    row = int(model.node_index([node])[0])
+    s = model.springs
+    first = _new_id(model.element_ids(), 1)
+    eids = [first + i for i in range(len(components))]
+    n = len(components)
+    new = Springs(
+        ids=np.append(s.ids, eids), pids=np.append(s.pids, np.zeros(n, np.int64)),
+        nodes=np.concatenate([s.nodes, np.array([[row, -1]] * n, dtype=np.int64).reshape(n, 2)]),
+        components=np.concatenate([s.components, np.array([[c, 0] for c in components], dtype=np.int64).reshape(n, 2)]),
+        k=jnp.concatenate([s.k, jnp.broadcast_to(jnp.asarray(k, dtype=jnp.float64), (n,))]),
+        k_scale=jnp.append(s.k_scale, jnp.ones(n)),
+    )
+    return eqx.tree_at(lambda m: m.springs, model, new), eids
+
+
+def add_mass(model: Model, node: int, m: float, eid: int | None = None) -> tuple[Model, int]:
+    """A point mass ``m`` (kg, CONM2 without offset or inertia) at grid ``node``."""
+    row = int(model.node_index([node])[0])
+    c = model.masses
+    eid = _new_id(model.element_ids(), 1) if eid is None else int(eid)
+    new = Masses(
+        ids=np.append(c.ids, eid), nodes=np.append(c.nodes, row),
+        m=jnp.append(c.m, m), offset=jnp.concatenate([c.offset, jnp.zeros((1, 3))]),
+        inertia=jnp.concatenate([c.inertia, jnp.zeros((1, 3, 3))]), m_scale=jnp.append(c.m_scale, 1.0),
+    )
+    return eqx.tree_at(lambda mm: mm.masses, model, new), eid
+
+
+def refresh(model: Model) -> Model:
+    """Redo the massless/auto-SPC bookkeeping after edits (see ``finalize_dofs``)."""
+    return finalize_dofs(model)
