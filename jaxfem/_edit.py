@@ -88,7 +88,7 @@ def reconnect(model: Model, eids: Sequence[int], old: int, new: int) -> Model:
         block = getattr(model, name)
         hit = np.isin(block.ids, wanted)[:, None] & (block.nodes == old_row)
         if hit.any():
-            model = eqx.tree_at(lambda m: getattr(m, name).nodes, model, np.where(hit, new_row, block.nodes))
+            model = eqx.tree_at(lambda m, name=name: getattr(m, name).nodes, model, np.where(hit, new_row, block.nodes))
     return model
 
 

@@ -4,11 +4,15 @@ Without a :class:`jaxfem.Viscoelastic` law this is ``eigh(*assemble(model), n)``
 one, ``K(f) = K_0 + s(f) K_g`` with ``s(f) = a ln(f/f_ref)`` and every mode j solves its
 own eigenproblem at its own frequency, ``K(f_j) φ_j = λ_j M φ_j`` with ``λ_j = (2π f_j)²``
 (self-consistency, as for the thesis' silicone layer, §4.2.4.2). Each mode is found by
-Newton's method on ``h(λ) = λ − μ_j(s(λ))`` in the Rayleigh–Ritz basis of the lowest
-``n_basis`` modes Φ of ``(K_0, M)``: ``μ_j(s)`` is the j-th eigenvalue of
-``Λ_0 + s ΦᵀK_gΦ``, and ``h'(λ) = 1 − (y_jᵀ ΦᵀK_gΦ y_j)·a/(2λ)``. The iterations carry no
-derivative; one last Newton step does, which gives the implicit-function derivative
-``dλ_j = dμ_j / h'(λ_j)`` exactly at the converged point.
+Newton's method on ``h(λ) = λ − μ_j(s(λ))``, ``h'(λ) = 1 − (y_jᵀ G y_j)·a/(2λ)``, where
+``μ_j(s)``, ``y_j`` are the j-th eigenpair of the Rayleigh–Ritz problem
+``(K_r + s G, M_r)`` on the basis of the lowest modes of ``(K_0, M)`` enriched with their
+static responses to ``K_g`` (``G = BᵀK_gB``). The iterations carry no derivative. The
+returned values are written so that their value is the converged one and their first
+derivative is exact: λ_j as one more Newton step on the (stationary) Rayleigh quotient —
+the implicit-function derivative ``dλ_j = ∂μ_j/∂p / h'`` — and y_j as the first-order
+modal expansion in the reduced space (Fox & Kapoor 1968), with no rotation inside
+clusters of nearly equal μ (as :func:`jaxfem.eigh`).
 """
 
 from __future__ import annotations
@@ -19,10 +23,10 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from ._assembly import assemble
-from ._eigen import eigh
+from ._eigen import DEGENERATE_RTOL, eigh
 from ._model import Model
 
-_NEWTON = 4  # quadratic convergence: |Δλ|/λ < 1e-12 after 3 steps for |a| ≤ 0.3
+_NEWTON = 4  # Newton steps; quadratic convergence, |Δλ|/λ < 1e-12 after 3 for |a| ≤ 0.3
 
 
 def modes(model: Model, n_modes: int, *, n_basis: int | None = None
@@ -30,7 +34,8 @@ def modes(model: Model, n_modes: int, *, n_basis: int | None = None
     """Eigenvalues λ (rad/s)² and mass-normalised mode shapes of ``model``.
 
     **Arguments:** the model, the number of lowest modes, and for a frequency-dependent
-    model the Ritz basis size (default ``n_modes + 40``, at most all modes).
+    model the Ritz basis size (default ``n_modes + 10``, at most all modes; enriched
+    with static corrections, see ``_enrich``).
     **Returns:** ``(λ, φ)`` as :func:`jaxfem.eigh`; differentiable in every model value,
     including the law's ``a`` and ``f_ref``.
     """
@@ -39,7 +44,7 @@ def modes(model: Model, n_modes: int, *, n_basis: int | None = None
     if law is None:
         return eigh(K, M, n_modes)
     n_free = K.n - len(M.massless)
-    n_b = min(n_free, n_basis or n_modes + 40)
+    n_b = min(n_free, n_basis or n_modes + 10)
     if n_b < n_modes:
         raise ValueError(f"n_basis = {n_b} < n_modes = {n_modes}")
     lam0, phi = eigh(K, M, n_b)
@@ -56,27 +61,36 @@ def modes(model: Model, n_modes: int, *, n_basis: int | None = None
     m_r = m_r + jnp.diag(dropped)
     n_r = basis.shape[1]
 
+    frozen = jax.lax.stop_gradient((law, k_r, g, m_r))
+    chol = jnp.linalg.cholesky(frozen[3])
+
+    def standard(a):
+        b = jax.scipy.linalg.solve_triangular(chol, a, lower=True)
+        return jax.scipy.linalg.solve_triangular(chol, b.T, lower=True)
+
+    k_s, g_s = standard(frozen[1]), standard(frozen[2])
+
     def one(j):
-        frozen = jax.lax.stop_gradient((law, k_r, g, m_r))
-        chol = jnp.linalg.cholesky(frozen[3])
-
-        def standard(a):
-            b = jax.scipy.linalg.solve_triangular(chol, a, lower=True)
-            return jax.scipy.linalg.solve_triangular(chol, b.T, lower=True)
-
-        k_s, g_s = standard(frozen[1]), standard(frozen[2])
-
         def newton(lam, _):
-            mu, y = jnp.linalg.eigh(k_s + _shift(frozen[0], lam) * g_s)
-            slope = 1.0 - (y[:, j] @ g_s @ y[:, j]) * _shift_slope(frozen[0], lam)
+            mu, z = jnp.linalg.eigh(k_s + _shift(frozen[0], lam) * g_s)
+            slope = 1.0 - (z[:, j] @ g_s @ z[:, j]) * _shift_slope(frozen[0], lam)
             return lam - (lam - mu[j]) / slope, None
 
-        lam_star, _ = jax.lax.scan(newton, jax.lax.stop_gradient(lam0[j]), None, length=_NEWTON)
-        mu, y = eigh(k_r + _shift(law, lam_star) * g, m_r, n_r)
-        slope = jax.lax.stop_gradient(1.0 - (y[:, j] @ g @ y[:, j]) * _shift_slope(law, lam_star))
-        lam_j = lam_star - (lam_star - mu[j]) / slope  # differentiable Newton step (IFT)
-        _, y = eigh(k_r + _shift(law, lam_j) * g, m_r, n_r)
-        return lam_j, y[:, j]
+        lam_star, _ = jax.lax.scan(newton, frozen[1][j, j] / frozen[3][j, j], None, length=_NEWTON)
+        mu, z = jnp.linalg.eigh(k_s + _shift(frozen[0], lam_star) * g_s)
+        y = jax.scipy.linalg.solve_triangular(chol.T, z, lower=False)  # M_r-orthonormal
+        yj = y[:, j]
+        # λ: Rayleigh quotient at fixed s (stationary: exact first derivative), then the
+        # implicit-function Newton step through s(λ)
+        rq = yj @ (k_r + _shift(law, lam_star) * g) @ yj / (yj @ m_r @ yj)
+        slope = 1.0 - (yj @ frozen[2] @ yj) * _shift_slope(frozen[0], lam_star)
+        lam_j = lam_star - (lam_star - rq) / slope
+        # φ: first-order modal expansion in the reduced space; its value is exactly y_j
+        gap = mu[j] - mu
+        apart = jnp.abs(gap) > DEGENERATE_RTOL * jnp.abs(mu[j])  # clusters: no rotation
+        r = (k_r + _shift(law, lam_j) * g - mu[j] * m_r) @ yj
+        coef = jnp.where(apart, (y.T @ r) / jnp.where(apart, gap, 1.0), 0.0)
+        return lam_j, yj + y @ coef - 0.5 * yj * (yj @ (m_r - frozen[3]) @ yj)
 
     lam, y = jax.vmap(one)(jnp.arange(n_modes))
     shapes = basis @ y.T

@@ -28,6 +28,6 @@ def test_both_indicators_find_the_erroneous_group():
     assert int(np.argmax(rho)) == 3
     assert rho[3] > 0.5 and np.all(np.delete(rho, 3) < rho[3])
 
-    scores = group_scores(residual_forces(model, np.asarray(lam), np.asarray(C @ phi), C), model)
+    scores = group_scores(residual_forces(model, np.asarray(lam), np.asarray(C @ phi), C)[0], model)
     assert next(iter(scores)) == 4  # highest residual-force energy in property 4
     assert all(v < 0.8 for p, v in scores.items() if p != 4)

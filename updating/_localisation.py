@@ -22,8 +22,31 @@ from jaxfem import Model
 from ._residuals import Problem, residuals
 
 
+def reduction(r: np.ndarray, columns: np.ndarray, baseline: np.ndarray | None = None,
+              *, joint: bool = False) -> np.ndarray | float:
+    """Method (a): share ρ ∈ [0, 1] of ‖r‖² that a linearised least-squares step removes.
+
+    Per column ``ρ_k = (J_kᵀ r)² / (‖J_k‖² ‖r‖²)``, or with ``joint=True`` one ρ for the
+    span of all columns. Columns of ``baseline`` (parameters fitted anyway) are projected
+    out first, so ρ is what a candidate adds to them.
+    """
+    r, J = np.asarray(r, float), np.asarray(columns, float)
+    if baseline is not None and baseline.shape[1]:
+        q, _ = np.linalg.qr(baseline)
+        J = J - q @ (q.T @ J)
+    rr = float(r @ r)
+    if rr == 0:
+        return 0.0 if joint else np.zeros(J.shape[1])
+    if joint:
+        coef = np.linalg.lstsq(J, r, rcond=1e-10)[0]
+        fit = J @ coef
+        return float(fit @ fit) / rr
+    den = np.sum(J * J, axis=0) * rr
+    return np.where(den > 0, (J.T @ r) ** 2 / np.where(den > 0, den, 1.0), 0.0)
+
+
 def parameter_reduction(problem: Problem, theta=None) -> np.ndarray:
-    """Method (a): ρ_k ∈ [0, 1] per parameter of ``problem`` (regularisation rows excluded)."""
+    """Method (a) for the parameters of ``problem``: ρ_k per parameter (at θ, default 0)."""
     n_p = len(problem.parameterisation.parameters)
     theta = jnp.zeros(n_p) if theta is None else theta
 
@@ -32,13 +55,10 @@ def parameter_reduction(problem: Problem, theta=None) -> np.ndarray:
         return jnp.concatenate([jnp.ravel(v) for k, v in sorted(eps.items()) if k != "regularisation"])
 
     r, J = jax.jit(lambda t: (stacked(t), jax.jacfwd(stacked)(t)))(theta)
-    r, J = np.asarray(r), np.asarray(J)
-    num = (J.T @ r) ** 2
-    den = np.sum(J * J, axis=0) * float(r @ r)
-    return np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
+    return reduction(np.asarray(r), np.asarray(J))
 
 
-def residual_forces(model: Model, lam_e, phi_e, C) -> dict[int, float]:
+def residual_forces(model: Model, lam_e, phi_e, C) -> tuple[dict[int, float], dict[int, float]]:
     """Method (b): residual-force indicator per element id.
 
     Each measured shape is expanded to all DoFs with the least residual force that still
@@ -49,7 +69,7 @@ def residual_forces(model: Model, lam_e, phi_e, C) -> dict[int, float]:
 
     **Arguments:** the model; measured eigenvalues λ_e (rad/s)² (m,), real shapes at the
     sensors ``phi_e`` (n_s, m), the observation matrix ``C`` (n_s, n_dof).
-    **Returns:** {element id: indicator}.
+    **Returns:** ({element id: indicator}, {grid id: Σ f² over its solved DoFs}).
     """
     K, M = jaxfem.assemble(model)
     kd, md = np.asarray(K.todense()), np.asarray(M.todense())
@@ -67,12 +87,15 @@ def residual_forces(model: Model, lam_e, phi_e, C) -> dict[int, float]:
         used = idx < model.n_dof
         value = np.sum(per_dof[idx] * used, axis=1) / np.maximum(used.sum(axis=1), 1)
         scores.update({int(e): float(v) for e, v in zip(block.ids, value)})
-    return scores
+    nodes: dict[int, float] = {}
+    for (node, _), f2 in zip(model.dofs.labels, per_dof[:n]):
+        nodes[int(node)] = nodes.get(int(node), 0.0) + float(f2)
+    return scores, nodes
 
 
 def _element_dofs(model: Model):
     """(element block, solved-DoF indices per element) for blocks with stiffness."""
-    from jaxfem._assembly import _node_transform  # noqa: PLC0415
+    from jaxfem._assembly import _node_transform
 
     for block in (model.beams, model.rods, model.bushes):
         if len(block.ids):

@@ -104,8 +104,6 @@ class ParameterSet:
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
             raise ValueError(f"duplicate parameter names: {dup}")
-        if not self.parameters:
-            raise ValueError("no parameters declared")
 
     @property
     def names(self) -> list[str]:
@@ -141,6 +139,8 @@ class ParameterSet:
                 ))
             except ValueError as err:
                 raise ValueError(f"{path}: parameter #{i}: {err}") from None
+        if not params:
+            raise ValueError(f"{path}: no [[parameter]] declared")
         opts = data.get("options", {})
         known = set(Options.__dataclass_fields__)
         if set(opts) - known:

@@ -49,9 +49,13 @@ class Problem(eqx.Module):
     use_phi: bool = eqx.field(static=True)
     min_mac: float = eqx.field(static=True)
     max_freq_dev: float = eqx.field(static=True)
+    extension: eqx.Module | None = None  # a candidate effect's parameters (updating._effects.Extension)
 
     def model(self, theta: Float[Array, " p"]) -> Model:
-        return self.parameterisation.apply(eqx.combine(self.values, self.structure.value), theta)
+        """The model at θ: the parameters' factors, then the extension's (trailing θ entries)."""
+        n = len(self.parameterisation.parameters)
+        model = self.parameterisation.apply(eqx.combine(self.values, self.structure.value), theta[:n])
+        return model if self.extension is None else self.extension(model, theta[n:])
 
 
 class Evaluation(eqx.Module):
@@ -68,8 +72,7 @@ class Evaluation(eqx.Module):
 
 def model_modes(theta: Float[Array, " p"], problem: Problem):
     """Eigenvalues of the model at θ and its shapes at the sensors, ``(λ, C φ)``."""
-    K, M = jaxfem.assemble(problem.model(theta))
-    lam, phi = jaxfem.eigh(K, M, problem.n_model)
+    lam, phi = jaxfem.modes(problem.model(theta), problem.n_model)
     return lam, problem.C @ phi
 
 

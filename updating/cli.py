@@ -182,7 +182,7 @@ def _model_modes(model, C: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     """Model frequencies (Hz) and shapes at the sensors ``C φ``."""
     import jaxfem
 
-    lam, phi = jaxfem.eigh(*jaxfem.assemble(model), n)
+    lam, phi = jaxfem.modes(model, n)
     return np.asarray(jaxfem.frequencies_hz(lam)), C @ np.asarray(phi)
 
 
