@@ -43,7 +43,9 @@ from ._correlation import comac, pair_modes
 from ._effects import (
     Effect,
     Extension,
+    at_reference,
     constrained_components,
+    effect_parameters,
     elements_at,
     extension,
     joint_reference,
@@ -53,7 +55,7 @@ from ._effects import (
 from ._localisation import group_scores, reduction, residual_forces
 from ._parameters import Options, Parameter, Parameterisation, ParameterSet
 from ._residuals import Problem, evaluate, residuals
-from ._solve import build_problem
+from ._solve import Iteration, UpdateResult, build_problem, update
 
 
 @dataclass(frozen=True)
@@ -76,7 +78,7 @@ class DiagnoseOptions:
     max_nodes: int = 10
     min_score: float = 20.0
     min_delta_aic: float = 10.0
-    max_steps: int = 40
+    max_steps: int = 20
     kinds: tuple[str, ...] = ("stiffness", "mass", "joint", "added_mass", "boundary_spring",
                               "frequency_dependent_stiffness")
 
@@ -144,12 +146,15 @@ def _run(problem: Problem, exts: list, theta0s: list, masks, max_steps) -> list[
     are traced arguments). They run in a host loop: ``vmap`` of the Optimistix loop stalled
     on XLA-CPU here (jax 0.10.2), and on CPU a batched eigensolve is no faster than a loop.
     """
+    def fit(ext, th, m):
+        p = eqx.tree_at(lambda q: (q.extension, q.active), problem, (ext, jnp.asarray(m)),
+                        is_leaf=lambda x: x is None)
+        return _solve_jit(jnp.asarray(th), p, max_steps)
+
     outs = []
     for ext, th in zip(exts, theta0s):
-        for m in masks:
-            p = eqx.tree_at(lambda q: (q.extension, q.active), problem, (ext, jnp.asarray(m)),
-                            is_leaf=lambda x: x is None)
-            outs.append(_solve_jit(jnp.asarray(th), p, max_steps))
+        full = fit(ext, th, masks[0])
+        outs += [full] + [fit(ext, full[0], m) for m in masks[1:]]  # folds start at the full fit
     out = [np.stack([np.asarray(o[i]) for o in outs]) for i in range(len(outs[0]))]
     n_m = len(masks)
     results = []
@@ -258,6 +263,7 @@ class Diagnosis:
     baseline_params: tuple[Parameter, ...]
     element_scores: dict[int, float]
     node_scores: dict[int, float]
+    sensor_modes: tuple  # baseline model frequencies (Hz) and shapes at the sensors
 
 
 def _pairing_rows(pairing) -> list[dict]:
@@ -462,7 +468,8 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     report["seconds"] = time.perf_counter() - start
     say(f"diagnosis done in {report['seconds']:.1f} s")
     return Diagnosis(report, best, ranked, model, params, _combine(
-        {e: v for e, v in elem_a.items() if e in set(model.element_ids().tolist())}, elem_b), node_score)
+        {e: v for e, v in elem_a.items() if e in set(model.element_ids().tolist())}, elem_b), node_score,
+        (np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model)))
 
 
 def _rms(dev) -> float | None:
@@ -600,3 +607,98 @@ def _structural_candidate(model: Model, eff: Effect) -> Candidate:
     m = replace(eff, values=ref).apply(model)
     new = sorted(set(m.element_ids().tolist()) - before)
     return Candidate(eff, "structural", extension(m, k_log=new), ref, model=m)
+
+
+# ---------------------------------------------------------------------------------------
+# add the effect and update again
+
+
+@dataclass
+class Confirmation:
+    """The update without and with an effect, on the same active/passive split."""
+
+    effect: Effect  # at its updated values
+    before: object  # Pairing of the baseline (updated with the engineer's parameters, if any)
+    after: UpdateResult
+    passive: np.ndarray  # bool per test mode
+    report: dict
+
+
+def _dev(pairing, n: int) -> np.ndarray:
+    dev = np.full(n, np.nan)
+    dev[np.asarray(pairing.test, np.int64)] = 100 * np.asarray(pairing.freq_dev)
+    return dev
+
+
+def _mac(pairing, n: int) -> np.ndarray:
+    out = np.full(n, np.nan)
+    out[np.asarray(pairing.test, np.int64)] = np.asarray(pairing.mac)
+    return out
+
+
+def add_effect(model: Model, test: ModalData, effect: Effect, parameters: ParameterSet | None = None, *,
+               passive_modes: tuple[int, ...] | None = None,
+               progress: Callable[[Iteration], None] | None = None) -> Confirmation:
+    """Add ``effect`` (from its starting values, :func:`at_reference`) and update it with
+    the engineer's parameters, holding ``passive_modes`` out of the fit (default: every
+    fourth test mode from the third); compare with the update without it.
+
+    **Returns:** a :class:`Confirmation`; ``report`` is JSON-ready (per-mode Δf and MAC
+    before/after with roles, RMS Δf over active and passive modes, iteration history).
+    """
+    ne = len(test.frequencies_hz)
+    passive = tuple(passive_modes) if passive_modes is not None else tuple(i for i in range(1, ne + 1) if i % 4 == 3)
+    base = tuple(parameters.parameters) if parameters else ()
+    opts = replace(parameters.options if parameters else Options(), active_modes=None, passive_modes=passive)
+    if base:
+        before = update(model, test, ParameterSet(base, opts)).after
+    else:
+        problem = build_problem(model, test, ParameterSet((), opts))
+        ev = evaluate(jnp.zeros(0), problem)
+        before = pair_modes(np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model),
+                            np.asarray(test.frequencies_hz), np.asarray(problem.phi_e),
+                            min_mac=problem.min_mac, max_freq_dev=problem.max_freq_dev)
+    start = at_reference(model, effect, test.frequencies_hz)
+    extended = start.apply(model)
+    eparams = effect_parameters(start, model, extended)
+    after = update(extended, test, ParameterSet(base + eparams, opts), progress=progress)
+    alpha = dict(zip(after.names, after.alpha))
+    values = dict(start.values)
+    if effect.kind in ("stiffness", "mass"):
+        values = {"alpha" if effect.kind == "stiffness" else "beta": float(alpha[eparams[0].name])}
+    elif effect.kind == "frequency_dependent_stiffness":
+        values.update(alpha=float(alpha[eparams[0].name]), a=float(alpha[eparams[1].name]))
+    else:
+        values = {k: float(v * (1 + alpha[eparams[0].name])) for k, v in values.items()}
+    final = replace(start, values=values)
+    is_passive = np.isin(np.arange(1, ne + 1), passive)
+    d0, d1 = _dev(before, ne), _dev(after.after, ne)
+    m0, m1 = _mac(before, ne), _mac(after.after, ne)
+    f_e = np.asarray(test.frequencies_hz)
+
+    def rms(d, sel):
+        return _rms(d[sel] / 100)
+
+    report = {
+        "effect": {"kind": final.kind, "pids": list(final.pids), "eids": list(final.eids),
+                   "nodes": list(final.nodes), "where": final.where(), "parameters": values},
+        "parameters": [{"name": n, "alpha": float(a)} for n, a in zip(after.names, after.alpha)],
+        "converged": bool(after.converged), "iterations": int(after.iterations), "seconds": float(after.seconds),
+        "passive_modes": list(passive),
+        "paired_modes": [{"test": j + 1, "role": "passive" if is_passive[j] else "active", "f_test_hz": float(f_e[j]),
+                          "freq_dev_pct_before": _num(d0[j]), "freq_dev_pct_after": _num(d1[j]),
+                          "mac_before": _num(m0[j]), "mac_after": _num(m1[j])} for j in range(ne)],
+        "rms_freq_dev_pct_active_before": rms(d0, ~is_passive), "rms_freq_dev_pct_active_after": rms(d1, ~is_passive),
+        "rms_freq_dev_pct_passive_before": rms(d0, is_passive), "rms_freq_dev_pct_passive_after": rms(d1, is_passive),
+        "mean_mac_passive_before": _num(np.nanmean(m0[is_passive])) if is_passive.any() else None,
+        "mean_mac_passive_after": _num(np.nanmean(m1[is_passive])) if is_passive.any() else None,
+        "history": [{"iteration": h.iteration, "cost": float(h.cost),
+                     "rms_freq_dev_pct_active": rms(100 * h.freq_dev, ~is_passive),
+                     "rms_freq_dev_pct_passive": rms(100 * h.freq_dev, is_passive)} for h in after.history],
+    }
+    return Confirmation(final, before, after, is_passive, report)
+
+
+def _num(x) -> float | None:
+    x = float(x)
+    return x if np.isfinite(x) else None

@@ -32,6 +32,8 @@ import jaxfem
 from jaxfem import Model
 from jaxfem import _edit as edit
 
+from ._parameters import Parameter
+
 KINDS = ("stiffness", "mass", "joint", "added_mass", "boundary_spring",
          "frequency_dependent_stiffness", "damping")
 _K_BLOCKS = ("beams", "rods", "springs", "bushes")
@@ -264,3 +266,76 @@ def extension(model: Model, *, k_log=(), k_add=(), m_log=(), m_add=(), f_ref: fl
 
     return Extension(masks(_K_BLOCKS, k_log), masks(_K_BLOCKS, k_add), masks(_M_BLOCKS, m_log),
                      masks(_M_BLOCKS, m_add), jnp.asarray(f_ref or 1.0), f_ref is not None)
+
+
+# ---------------------------------------------------------------------------------------
+# from the command line to an update
+
+
+def parse_effect(spec: str) -> Effect:
+    """``KIND:TARGET`` as on the command line, e.g. ``joint:node=6001``,
+    ``joint:node=3007;pids=21,22``, ``stiffness:pid=41``, ``mass:eids=201-205``,
+    ``added_mass:node=2015``, ``boundary_spring:node=1``,
+    ``frequency_dependent_stiffness:pid=41``."""
+    kind, _, target = spec.partition(":")
+    if kind not in KINDS or not target:
+        raise ValueError(f"effect {spec!r}: write KIND:TARGET with KIND one of {KINDS}, "
+                         "TARGET like pid=41, node=1029, eids=201-205 (';' between several)")
+    where: dict[str, tuple[int, ...]] = {"pids": (), "eids": (), "nodes": ()}
+    for part in target.split(";"):
+        key, _, value = part.partition("=")
+        key = {"pid": "pids", "eid": "eids", "node": "nodes"}.get(key.strip(), key.strip())
+        if key not in where or not value:
+            raise ValueError(f"effect {spec!r}: unknown target {part!r} (pid(s)=, eid(s)=, node(s)=)")
+        ids: list[int] = []
+        try:
+            for item in value.split(","):
+                lo, _, hi = item.partition("-")
+                ids += list(range(int(lo), int(hi or lo) + 1))
+        except ValueError:
+            raise ValueError(f"effect {spec!r}: {part!r} is not a list of integers") from None
+        where[key] = tuple(ids)
+    return Effect(kind, **where)
+
+
+def at_reference(model: Model, effect: Effect, f_test_hz) -> Effect:
+    """The effect with starting values for a fit: no change for group factors, a
+    slightly flexible joint or support (:func:`joint_reference`), 1 % of the total mass,
+    a support spring that alone would carry the structure at f₁/10, a = 0 at the
+    geometric mean of the test frequencies."""
+    kind = effect.kind
+    f = np.asarray(f_test_hz, float)
+    if kind in ("stiffness", "mass", "damping"):
+        values = {}
+    elif kind == "frequency_dependent_stiffness":
+        values = {"a": 0.0, "f_ref_hz": float(np.exp(np.mean(np.log(f))))}
+    elif kind == "added_mass":
+        values = {"m": 0.01 * total_mass(model)}
+    elif kind == "boundary_spring" and not any(constrained_components(model, n) for n in effect.nodes):
+        values = {"k": total_mass(model) * (2 * np.pi * float(np.min(f)) / 10) ** 2}
+    else:
+        dep = masters(model)
+        side = []
+        for n in effect.nodes:
+            at = elements_at(model, n)
+            side += [e for e, p in at.items() if n in dep or kind == "boundary_spring" or p in effect.pids[1:]]
+        if kind == "joint" and not all(n in dep for n in effect.nodes) and len(effect.pids) < 2:
+            raise ValueError(f"joint at grid(s) {list(effect.nodes)}: not RBE2-dependent; name the two "
+                             "groups, e.g. joint:node=3007;pids=21,22 (the second group is released)")
+        values = joint_reference(model, effect.nodes, side)
+    return Effect(kind, effect.pids, effect.eids, effect.nodes, values, effect.label)
+
+
+def effect_parameters(effect: Effect, before: Model, after: Model) -> tuple:
+    """Updating parameters of an effect added to ``before`` (giving ``after``)."""
+    name = f"{effect.kind}"
+    new = sorted(set(after.element_ids().tolist()) - set(before.element_ids().tolist()))
+    target = {"eids": tuple(effect.eids)} if effect.eids else {"pids": tuple(effect.pids)}
+    if effect.kind in ("stiffness", "mass"):
+        return (Parameter(name, effect.kind, **target),)
+    if effect.kind == "frequency_dependent_stiffness":
+        return (Parameter(name + "_E0", "stiffness", **target),
+                Parameter(name + "_a", "a", pids=tuple(effect.pids), bounds=(-0.5, 0.5)))
+    if effect.kind == "added_mass":
+        return (Parameter(name, "m", eids=tuple(new), bounds=(-1.0, 10.0)),)
+    return (Parameter(name, "k", eids=tuple(new), bounds=(-0.999, 1e3)),)

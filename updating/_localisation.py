@@ -62,10 +62,12 @@ def residual_forces(model: Model, lam_e, phi_e, C) -> tuple[dict[int, float], di
     """Method (b): residual-force indicator per element id.
 
     Each measured shape is expanded to all DoFs with the least residual force that still
-    reproduces the measurement, ``min ‖W (K − λ_e M) φ̃‖ subject to C φ̃ = φ_e`` (W: inverse
-    stiffness diagonal, so forces become displacement-like and translations mix with
-    rotations); the remaining force ``f = W (K − λ_e M) φ̃`` is where the model cannot be in
-    equilibrium with the test. A DoF scores Σ_modes f², an element the mean over its DoFs.
+    reproduces the measurement, ``min ‖W (K − λ_e M) φ̃‖ subject to C φ̃ = φ_e`` (W: the
+    inverse of the median stiffness diagonal of translations and of rotations, so that
+    forces and moments mix as displacements do, without amplifying soft parts); the
+    remaining force ``f = W (K − λ_e M) φ̃`` is where the model cannot be in
+    equilibrium with the test. A DoF scores Σ_modes f², an element the mean over its DoFs;
+    both are scaled to a maximum of 1.
 
     **Arguments:** the model; measured eigenvalues λ_e (rad/s)² (m,), real shapes at the
     sensors ``phi_e`` (n_s, m), the observation matrix ``C`` (n_s, n_dof).
@@ -74,7 +76,10 @@ def residual_forces(model: Model, lam_e, phi_e, C) -> tuple[dict[int, float], di
     K, M = jaxfem.assemble(model)
     kd, md = np.asarray(K.todense()), np.asarray(M.todense())
     C = np.asarray(C)
-    w = 1.0 / np.diag(kd)
+    rotation = model.dofs.labels[:, 1] > 3
+    diag = np.abs(np.diag(kd))
+    w = np.where(rotation, 1.0 / np.median(diag[rotation]) if rotation.any() else 1.0,
+                 1.0 / np.median(diag[~rotation]) if (~rotation).any() else 1.0)
     n, ns = kd.shape[0], C.shape[0]
     per_dof = np.zeros(n + 1)  # last entry: padding index
     for lam, shape in zip(np.asarray(lam_e), np.asarray(phi_e).T):
@@ -90,7 +95,12 @@ def residual_forces(model: Model, lam_e, phi_e, C) -> tuple[dict[int, float], di
     nodes: dict[int, float] = {}
     for (node, _), f2 in zip(model.dofs.labels, per_dof[:n]):
         nodes[int(node)] = nodes.get(int(node), 0.0) + float(f2)
-    return scores, nodes
+    return _unit(scores), _unit(nodes)
+
+
+def _unit(scores: dict) -> dict:
+    top = max(scores.values(), default=0.0)
+    return {k: v / top for k, v in scores.items()} if top > 0 else scores
 
 
 def _element_dofs(model: Model):

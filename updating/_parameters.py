@@ -21,7 +21,7 @@ from jaxtyping import Array, Float
 import jaxfem
 from jaxfem import Model
 
-KINDS = ("stiffness", "mass", "E", "G", "rho", "A", "I1", "I2", "J", "k", "m")
+KINDS = ("stiffness", "mass", "E", "G", "rho", "A", "I1", "I2", "J", "k", "m", "a")
 _MATERIAL = {"E": "E", "G": "G", "rho": "rho"}
 _SECTION = {"A", "I1", "I2", "J"}
 
@@ -32,7 +32,9 @@ class Parameter:
 
     ``kind``: ``stiffness`` | ``mass`` (element groups, eq. 3.1) or a physical value
     ``E``, ``G``, ``rho`` (materials of the target properties), ``A``, ``I1``, ``I2``,
-    ``J`` (sections), ``k`` (springs and bushes), ``m`` (CONM2 masses). Targets: ``pids``
+    ``J`` (sections), ``k`` (springs and bushes), ``m`` (CONM2 masses), ``a`` (the
+    coefficient of the model's frequency law, :class:`jaxfem.Viscoelastic`, additive:
+    ``a = a₀ + α``; its pids name the layer). Targets: ``pids``
     (property ids), ``eids`` (element ids) or, for ``k``/``m``, ``nodes`` (grid ids).
     ``bounds``: plausible range of α, reported (not enforced).
     """
@@ -53,7 +55,7 @@ class Parameter:
             raise ValueError(f"parameter {self.name!r}: nodes = [...] is only for kinds k and m")
         if self.kind == "m" and self.pids:
             raise ValueError(f"parameter {self.name!r}: kind m (CONM2) targets eids or nodes, not pids")
-        if self.kind in _MATERIAL or self.kind in _SECTION:
+        if self.kind in _MATERIAL or self.kind in _SECTION or self.kind == "a":
             if self.eids or not self.pids:
                 raise ValueError(f"parameter {self.name!r}: kind {self.kind} needs pids = [...]")
 
@@ -215,6 +217,10 @@ def _scale_physical(model: Model, p: Parameter, factor) -> Model:
             model = eqx.tree_at(lambda m: getattr(m.rod_sections, p.kind), model,
                                 _scale_rows(getattr(model.rod_sections, p.kind), rows, factor))
         return model
+    if p.kind == "a":
+        if model.viscoelastic is None:
+            raise ValueError(f"parameter {p.name!r}: kind a needs a model with a frequency law")
+        return eqx.tree_at(lambda m: m.viscoelastic.a, model, model.viscoelastic.a + (factor - 1.0))
     if p.kind == "k":
         s, b = model.springs, model.bushes
         srows = _target_rows(model, s, p)
