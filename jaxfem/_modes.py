@@ -56,7 +56,7 @@ def modes(model: Model, n_modes: int, *, n_basis: int | None = None
     k_g = assemble(layer)[0]
     basis = _enrich(K, M, k_g, lam0, phi, n_modes)
     k_r, g, m_r = (basis.T @ a.matmul(basis) for a in (K, k_g, M))
-    dropped = jnp.concatenate([jnp.zeros(n_b), jnp.all(basis[:, n_b:] == 0.0, axis=0)])
+    dropped = jnp.concatenate([jnp.zeros(n_b), jnp.all(basis[:, n_b:] == 0.0, axis=0).astype(jnp.float64)])
     k_r = k_r + jnp.diag(dropped * 1e6 * lam0[-1])  # unused enrichment directions → far above
     m_r = m_r + jnp.diag(dropped)
     n_r = basis.shape[1]

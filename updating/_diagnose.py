@@ -78,7 +78,7 @@ class DiagnoseOptions:
     max_nodes: int = 10
     min_score: float = 20.0
     min_delta_aic: float = 10.0
-    max_steps: int = 20
+    max_steps: int = 30
     kinds: tuple[str, ...] = ("stiffness", "mass", "joint", "added_mass", "boundary_spring",
                               "frequency_dependent_stiffness")
 
@@ -131,6 +131,17 @@ def _solve_one(theta0, problem: Problem, max_steps: int):
 
 
 _solve_jit = eqx.filter_jit(_solve_one)
+_cost_jit = eqx.filter_jit(lambda theta, problem: _cost_rows(theta, problem, problem.active)[0])
+
+_SCAN = (0.0, -1.5, -3.0, -4.5, -6.0, 1.5)  # log-factors tried before fitting a joint or support
+
+
+def _scan_start(problem: Problem, ext: Extension, theta_b: np.ndarray) -> np.ndarray:
+    """Best starting log-factor of a structural effect on a coarse grid (the fit from the
+    reference alone can stall far from a much softer joint)."""
+    p = eqx.tree_at(lambda q: q.extension, problem, ext, is_leaf=lambda x: x is None)
+    costs = [float(_cost_jit(jnp.asarray(np.append(theta_b, t)), p)) for t in _SCAN]
+    return np.array([_SCAN[int(np.argmin(costs))]])
 
 
 def _fold_masks(n: int, folds: int) -> list[np.ndarray]:
@@ -139,8 +150,9 @@ def _fold_masks(n: int, folds: int) -> list[np.ndarray]:
     return [np.ones(n, bool)] + [ids % folds != k for k in range(min(folds, n))]
 
 
-def _run(problem: Problem, exts: list, theta0s: list, masks, max_steps) -> list[dict]:
-    """Fit every extension on every mask (all modes, then the folds).
+def _run(problem: Problem, exts: list, theta0s: list, masks, max_steps, keep=None) -> list[dict]:
+    """Fit every extension on all modes, then on every fold (held-out mask) if
+    ``keep(cost)`` (default: always); the folds start at the all-modes fit.
 
     All fits of one model structure share one compiled solver (the extension and the mask
     are traced arguments). They run in a host loop: ``vmap`` of the Optimistix loop stalled
@@ -151,25 +163,24 @@ def _run(problem: Problem, exts: list, theta0s: list, masks, max_steps) -> list[
                         is_leaf=lambda x: x is None)
         return _solve_jit(jnp.asarray(th), p, max_steps)
 
-    outs = []
-    for ext, th in zip(exts, theta0s):
-        full = fit(ext, th, masks[0])
-        outs += [full] + [fit(ext, full[0], m) for m in masks[1:]]  # folds start at the full fit
-    out = [np.stack([np.asarray(o[i]) for o in outs]) for i in range(len(outs[0]))]
-    n_m = len(masks)
+    lam_e = np.asarray(problem.lam_e)
+
+    def deviation(out):
+        return np.where(out[4], np.sqrt(np.maximum(np.asarray(out[3]), 0) / lam_e) - 1, np.nan)
+
     results = []
-    for c in range(len(exts)):
-        sl = slice(c * n_m, (c + 1) * n_m)
-        theta, fit, held, lam_a, paired, mac = (o[sl] for o in out)
-        lam_e = np.asarray(problem.lam_e)
-        dev = np.where(paired, np.sqrt(np.maximum(lam_a, 0) / lam_e) - 1, np.nan)
-        heldout_dev = np.full(len(lam_e), np.nan)
-        for k in range(1, n_m):
-            heldout_dev[~masks[k]] = dev[k][~masks[k]]
-        results.append({
-            "theta": theta[0], "cost": float(fit[0]), "cv_cost": float(np.sum(held[1:])),
-            "freq_dev": dev[0], "mac": np.where(paired[0], mac[0], np.nan), "heldout_freq_dev": heldout_dev,
-        })
+    for ext, th in zip(exts, theta0s):
+        full = [np.asarray(o) for o in fit(ext, th, masks[0])]
+        res = {"theta": full[0], "cost": float(full[1]), "cv_cost": float("nan"), "freq_dev": deviation(full),
+               "mac": np.where(full[4], full[5], np.nan), "heldout_freq_dev": np.full(len(lam_e), np.nan)}
+        if keep is None or keep(res["cost"]):
+            held = 0.0
+            for m in masks[1:]:
+                out = fit(ext, full[0], m)
+                held += float(out[2])
+                res["heldout_freq_dev"][~m] = deviation(out)[~m]
+            res["cv_cost"] = held
+        results.append(res)
     return results
 
 
@@ -386,22 +397,28 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     short = list(dict.fromkeys(short)) + [c for c in cands if c.family == "structural"]
     say(f"{len(cands)} candidates screened; fitting {len(short)} with {len(masks) - 1}-fold cross-validation")
 
-    theta_start = lambda c: np.concatenate([theta_b, c.theta0])
+    n_rows = ne * (1 + ns)
+
+    def theta_start(c):
+        return np.concatenate([theta_b, c.theta0])
+
+    def keep(k_e):  # cross-validate only what could pass the AIC test
+        return lambda cost: n_rows * np.log(max(cost, 1e-300) / base["cost"]) + 2 * k_e <= -options.min_delta_aic
     for family in ("mask", "visco"):
         group = [c for c in short if c.family == family]
         if group:
             say(f"  {family}: {len(group)} candidates × {len(masks)} fits ({time.perf_counter() - start:.0f} s)")
             for c, res in zip(group, _run(problem, [c.ext for c in group], [theta_start(c) for c in group],
-                                          masks, options.max_steps)):
+                                          masks, options.max_steps, keep(group[0].ext.n_params))):
                 c.result = res
     for c in short:
         if c.family == "structural":
             say(f"  {c.effect.kind} {c.effect.where()} ({time.perf_counter() - start:.0f} s)")
             p = build_problem(c.model, test, pset)
-            c.result = _run(p, [c.ext], [theta_start(c)], masks, options.max_steps)[0]
+            c.theta0 = _scan_start(p, c.ext, theta_b)
+            c.result = _run(p, [c.ext], [theta_start(c)], masks, options.max_steps, keep(1))[0]
 
     # -- evidence
-    n_rows = ne * (1 + ns)
 
     def aic(cost, k):
         return n_rows * np.log(max(cost, 1e-300) / n_rows) + 2 * k
@@ -413,7 +430,7 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
         k = n_b + len(c.theta0)
         values = c.values(res["theta"][n_b:])
         d_aic = aic(res["cost"], k) - base_aic
-        score = 100 * (1 - res["cv_cost"] / base["cv_cost"]) if base["cv_cost"] > 0 else 0.0
+        score = 100 * (1 - res["cv_cost"] / base["cv_cost"]) if base["cv_cost"] > 0 else 0.0  # NaN: not CV'd
         notes = _plausibility(c, values, mass)
         eff = replace(c.effect, values=values)
         c.effect = eff
@@ -427,8 +444,10 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
             "rms_freq_dev_pct_after": _rms(res["freq_dev"]),
             "plausible": not notes, "plausibility": notes,
             "warranted": bool(score >= options.min_score and -d_aic >= options.min_delta_aic and not notes),
+            "cross_validated": bool(np.isfinite(score)),
         })
-    order = sorted(range(len(effects)), key=lambda i: (-effects[i]["warranted"], -effects[i]["score"]))
+    order = sorted(range(len(effects)), key=lambda i: (
+        -effects[i]["warranted"], -np.nan_to_num(effects[i]["score"], nan=-np.inf), effects[i]["delta_aic"]))
     effects = [effects[i] for i in order]
     ranked = [short[i] for i in order]
     for rank, e in enumerate(effects, 1):
@@ -562,11 +581,11 @@ def _element_jacobian_jit(theta, problem: Problem):
     def fn(uk, um):
         m = model0
         for name, u in zip(("beams", "rods", "springs", "bushes"), uk):
-            m = eqx.tree_at(lambda x, name=name: getattr(x, name).k_scale, m, getattr(m, name).k_scale * (1 + u)
-                            + (getattr(m, name).k_scale == 0) * u)
+            k = getattr(m, name).k_scale
+            m = eqx.tree_at(lambda x, name=name: getattr(x, name).k_scale, m, jnp.where(k == 0, u, k * (1 + u)))
         for name, u in zip(("beams", "rods", "masses"), um):
-            m = eqx.tree_at(lambda x, name=name: getattr(x, name).m_scale, m, getattr(m, name).m_scale * (1 + u)
-                            + (getattr(m, name).m_scale == 0) * u)
+            ms = getattr(m, name).m_scale
+            m = eqx.tree_at(lambda x, name=name: getattr(x, name).m_scale, m, jnp.where(ms == 0, u, ms * (1 + u)))
         p = eqx.tree_at(lambda q: (q.values, q.parameterisation, q.extension),
                         problem, (jaxfem.partition(m)[0], _identity(problem), None), is_leaf=lambda x: x is None)
         return _flat(jnp.zeros(0), p)
@@ -639,9 +658,11 @@ def _mac(pairing, n: int) -> np.ndarray:
 def add_effect(model: Model, test: ModalData, effect: Effect, parameters: ParameterSet | None = None, *,
                passive_modes: tuple[int, ...] | None = None,
                progress: Callable[[Iteration], None] | None = None) -> Confirmation:
-    """Add ``effect`` (from its starting values, :func:`at_reference`) and update it with
-    the engineer's parameters, holding ``passive_modes`` out of the fit (default: every
-    fourth test mode from the third); compare with the update without it.
+    """Add ``effect`` and update it with the engineer's parameters, holding
+    ``passive_modes`` out of the fit (default: every fourth test mode from the third);
+    compare with the update without it. The effect starts from its ``values`` (e.g. as
+    fitted by :func:`diagnose`) or, without values, from :func:`at_reference` scaled by
+    the best of a coarse scan of log-factors (a joint may be far softer than its reference).
 
     **Returns:** a :class:`Confirmation`; ``report`` is JSON-ready (per-mode Δf and MAC
     before/after with roles, RMS Δf over active and passive modes, iteration history).
@@ -658,18 +679,19 @@ def add_effect(model: Model, test: ModalData, effect: Effect, parameters: Parame
         before = pair_modes(np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model),
                             np.asarray(test.frequencies_hz), np.asarray(problem.phi_e),
                             min_mac=problem.min_mac, max_freq_dev=problem.max_freq_dev)
-    start = at_reference(model, effect, test.frequencies_hz)
+    start = effect if effect.values else _scanned(model, test, at_reference(model, effect, test.frequencies_hz), opts)
     extended = start.apply(model)
     eparams = effect_parameters(start, model, extended)
     after = update(extended, test, ParameterSet(base + eparams, opts), progress=progress)
-    alpha = dict(zip(after.names, after.alpha))
+    alpha = [float(after.alpha[after.names.index(p.name)]) for p in eparams]
     values = dict(start.values)
     if effect.kind in ("stiffness", "mass"):
-        values = {"alpha" if effect.kind == "stiffness" else "beta": float(alpha[eparams[0].name])}
+        key = "alpha" if effect.kind == "stiffness" else "beta"
+        values = {key: (1 + values.get(key, 0.0)) * (1 + alpha[0]) - 1}  # factors multiply (eq. 3.1)
     elif effect.kind == "frequency_dependent_stiffness":
-        values.update(alpha=float(alpha[eparams[0].name]), a=float(alpha[eparams[1].name]))
+        values.update(alpha=(1 + values.get("alpha", 0.0)) * (1 + alpha[0]) - 1, a=values["a"] + alpha[1])
     else:
-        values = {k: float(v * (1 + alpha[eparams[0].name])) for k, v in values.items()}
+        values = {k: float(v * (1 + alpha[0])) for k, v in values.items()}
     final = replace(start, values=values)
     is_passive = np.isin(np.arange(1, ne + 1), passive)
     d0, d1 = _dev(before, ne), _dev(after.after, ne)
@@ -697,6 +719,18 @@ def add_effect(model: Model, test: ModalData, effect: Effect, parameters: Parame
                      "rms_freq_dev_pct_passive": rms(100 * h.freq_dev, is_passive)} for h in after.history],
     }
     return Confirmation(final, before, after, is_passive, report)
+
+
+def _scanned(model: Model, test: ModalData, start: Effect, opts: Options) -> Effect:
+    """``start`` with its values scaled by the best factor of :data:`_SCAN` (structural kinds)."""
+    if start.kind not in ("joint", "boundary_spring", "added_mass"):
+        return start
+    extended = start.apply(model)
+    new = sorted(set(extended.element_ids().tolist()) - set(model.element_ids().tolist()))
+    ext = extension(extended, m_log=new) if start.kind == "added_mass" else extension(extended, k_log=new)
+    problem = build_problem(extended, test, ParameterSet((), replace(opts, passive_modes=())))
+    t = float(_scan_start(problem, ext, np.zeros(0))[0])
+    return replace(start, values={k: v * float(np.exp(t)) for k, v in start.values.items()})
 
 
 def _num(x) -> float | None:
