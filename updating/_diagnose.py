@@ -134,14 +134,16 @@ _solve_jit = eqx.filter_jit(_solve_one)
 _cost_jit = eqx.filter_jit(lambda theta, problem: _cost_rows(theta, problem, problem.active)[0])
 
 _SCAN = (0.0, -1.5, -3.0, -4.5, -6.0, 1.5)  # log-factors tried before fitting a joint or support
+_SCAN_ADDED = (-3.0, -2.0, -1.0, 0.0, 1.0, 2.0, 3.0)  # ... an added mass or spring (× its reference)
 
 
-def _scan_start(problem: Problem, ext: Extension, theta_b: np.ndarray) -> np.ndarray:
-    """Best starting log-factor of a structural effect on a coarse grid (the fit from the
-    reference alone can stall far from a much softer joint)."""
+def _scan_start(problem: Problem, ext: Extension, theta_b: np.ndarray, grid=_SCAN) -> np.ndarray:
+    """Best starting log-factor of an effect on a coarse grid: a fit from the reference
+    alone can stall where modes swap partners on the way (a much softer joint, a heavy
+    added mass)."""
     p = eqx.tree_at(lambda q: q.extension, problem, ext, is_leaf=lambda x: x is None)
-    costs = [float(_cost_jit(jnp.asarray(np.append(theta_b, t)), p)) for t in _SCAN]
-    return np.array([_SCAN[int(np.argmin(costs))]])
+    costs = [float(_cost_jit(jnp.asarray(np.append(theta_b, t)), p)) for t in grid]
+    return np.array([grid[int(np.argmin(costs))]])
 
 
 def _fold_masks(n: int, folds: int) -> list[np.ndarray]:
@@ -372,8 +374,6 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
             ext = extension(aug, m_add=ids) if kind == "added_mass" else extension(aug, k_add=ids)
             c = Candidate(Effect(kind, nodes=(node,)), "mask", ext, ref)
             c.screen = float(reduction(r, cols, J_b)[0])
-            gain = float(cols[:, 0] @ r) / max(float(cols[:, 0] @ cols[:, 0]), 1e-300)  # linear step in units of ref
-            c.theta0 = np.array([np.log(np.clip(gain, 1e-2, 1e2))])
             cands.append(c)
     cands = [c for c in cands if c.effect.kind in options.kinds]
 
@@ -404,6 +404,9 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
 
     def keep(k_e):  # cross-validate only what could pass the AIC test
         return lambda cost: n_rows * np.log(max(cost, 1e-300) / base["cost"]) + 2 * k_e <= -options.min_delta_aic
+    for c in short:
+        if c.effect.kind in ("added_mass", "boundary_spring") and c.family == "mask":
+            c.theta0 = _scan_start(problem, c.ext, theta_b, _SCAN_ADDED)
     for family in ("mask", "visco"):
         group = [c for c in short if c.family == family]
         if group:
