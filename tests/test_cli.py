@@ -24,14 +24,6 @@ def test_modes_json_matches_library(tmp_path):
     assert "f [Hz]" in result.output
 
 
-def test_demo_prints_modes():
-    result = runner.invoke(app, ["demo", "-n", "6"])
-    assert result.exit_code == 0, result.output
-    lines = [ln for ln in result.output.splitlines() if ln.strip()[:1].isdigit()]
-    freqs = [float(ln.split()[1]) for ln in lines]
-    assert len(freqs) == 6 and all(f > 0 for f in freqs) and freqs == sorted(freqs)
-
-
 def test_malformed_model_names_the_field(tmp_path):
     bad = tmp_path / "bad.bdf"
     bad.write_text("GRID,1,,0.,0.,abc\n")

@@ -301,9 +301,10 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     n_b = len(params)
     ne, ns = len(test.frequencies_hz), len(test.sensors)
     w_lam = options.noise_shape / (np.sqrt(ns) * 2 * options.noise_freq)  # σ_φ-per-component / σ_λ
-    pset = ParameterSet(params, Options(eigenvalue_weight=w_lam, regularisation=1e-8,
-                                        n_model_modes=parameters.options.n_model_modes if parameters else None))
     sigma2 = (options.noise_shape / np.sqrt(ns)) ** 2
+    # a weak prior (one noise unit at a factor e³ ≈ 20) keeps unidentifiable factors finite
+    pset = ParameterSet(params, Options(eigenvalue_weight=w_lam, regularisation=sigma2 / 9,
+                                        n_model_modes=parameters.options.n_model_modes if parameters else None))
     masks = _fold_masks(ne, options.folds)
 
     # -- localisation at the nominal model: where to put node-based candidates
