@@ -76,9 +76,13 @@ def test_boundary_spring(frame):
 
 
 def test_stiffness_of_half_a_group(frame):
-    model, sensors = frame
+    """Groups of 8 beams here (in the 8-group frame a half is 2 beams at one grid, which
+    the data cannot tell from a flexible joint there)."""
+    model = jaxfem.build_model(read_bdf_text(frame_bdf(2, 2, 4, n_groups=4)))
+    sensors = frame[1]
     d0 = diagnose(model, measure(model, sensors, noise=False), options=_opts(kinds=("stiffness",)))
-    split = next(c.effect for c in d0.candidates if c.effect.kind == "stiffness" and c.effect.eids)
+    split = max((c.effect for c in d0.candidates if c.effect.kind == "stiffness" and c.effect.eids),
+                key=lambda e: len(e.eids))  # the largest half-group
     truth = jaxfem.correct(model, [list(split.eids)], jnp.array([-0.3]))
     d = diagnose(model, measure(truth, sensors), options=_opts())
     assert (top(d.report)["kind"], top(d.report)["eids"]) == ("stiffness", list(split.eids))
@@ -95,21 +99,25 @@ def test_mass_of_a_group(frame):
 
 
 def test_frequency_dependent_stiffness_and_the_thesis_lesson(frame):
-    """§4.2.4.2: a constant stiffness factor fits the active (low) modes but predicts the
-    passive (high) ones worse; the frequency-dependent law fixes both."""
+    """§4.2.4.2: a constant stiffness factor fitted on the low (active) modes improves them
+    but predicts the high (passive) ones worse than before; the frequency-dependent law
+    fixes both, and the diagnosis ranks it first."""
     model, sensors = frame
-    law = Effect("frequency_dependent_stiffness", pids=(3,), values={"alpha": 0.0, "a": 0.35, "f_ref_hz": 60.0})
+    law = Effect("frequency_dependent_stiffness", pids=(3,), values={"alpha": 0.0, "a": 0.2, "f_ref_hz": 60.0})
     test = measure(law.apply(model), sensors)
     d = diagnose(model, test, options=_opts())
     assert (top(d.report)["kind"], top(d.report)["pids"]) == ("frequency_dependent_stiffness", [3])
-    assert top(d.report)["parameters"]["a"] == pytest.approx(0.35, abs=0.08)
+    fitted = top(d.report)["parameters"]  # E0 (1 + α)(1 + a ln(f/f_ref)): slope (1 + α) a per unit ln f
+    assert fitted["a"] * (1 + fitted["alpha"]) == pytest.approx(0.2, abs=0.03)
     assert_fixed(d.report)
-    passive = tuple(range(9, N_MODES + 1))  # fit on the 8 lowest modes, predict the 4 highest
+    passive = tuple(range(7, N_MODES + 1))  # fit on the 6 lowest modes, predict the 6 highest
     constant = add_effect(model, test, Effect("stiffness", pids=(3,)), passive_modes=passive).report
     dependent = add_effect(model, test, Effect("frequency_dependent_stiffness", pids=(3,)), passive_modes=passive).report
-    assert constant["rms_freq_dev_pct_active_after"] < 0.5 * constant["rms_freq_dev_pct_active_before"]
-    assert constant["rms_freq_dev_pct_passive_after"] > 2 * dependent["rms_freq_dev_pct_passive_after"]
-    assert dependent["rms_freq_dev_pct_passive_after"] < 2.5 * 100 * NOISE_F
+    assert constant["rms_freq_dev_pct_active_after"] < 0.6 * constant["rms_freq_dev_pct_active_before"]
+    assert constant["rms_freq_dev_pct_passive_after"] > constant["rms_freq_dev_pct_passive_before"]
+    for key in ("rms_freq_dev_pct_active_after", "rms_freq_dev_pct_passive_after"):
+        assert dependent[key] < 2.5 * 100 * NOISE_F
+    assert constant["rms_freq_dev_pct_passive_after"] > 3 * dependent["rms_freq_dev_pct_passive_after"]
 
 
 def test_parameter_errors_alone_claim_no_effect(frame):

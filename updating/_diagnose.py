@@ -8,8 +8,9 @@
 3. **Candidates** generated from the model (:mod:`updating._effects`), screened by the
    linearised residual reduction ρ (the same Jacobian as (a)); the best of each kind and
    the best overall, and the structural ones (joints, released supports) nearest the
-   localised error, are **fitted** with the baseline parameters (Levenberg–Marquardt,
-   batched with ``vmap`` where the model structure is shared).
+   localised error, are **fitted** with the baseline parameters (Optimistix
+   Levenberg–Marquardt; candidates of one model structure share one compiled solver, their
+   masks being traced arguments; the screening Jacobian of all elements is one ``jacfwd``).
 4. **Ranking by evidence that generalises**: k-fold cross-validation over the test modes
    (fit on the others, predict the held-out ones — the thesis' active/passive idea made
    systematic, §4.2.4.2) and Akaike's criterion ``AIC = n ln(RSS/n) + 2k`` which charges
@@ -64,7 +65,8 @@ class DiagnoseOptions:
 
     ``noise_freq``/``noise_shape``: expected relative σ of measured frequencies and of
     shape components (Table 4.7 magnitudes). ``folds``: cross-validation folds over the
-    test modes. ``shortlist``: screened candidates fitted in full; ``max_structural``:
+    test modes. ``shortlist``: screened candidates fitted in full, plus the ``per_kind``
+    best of each kind; ``max_structural``:
     joints and released supports fitted (nearest the localised error); ``max_nodes``:
     grids tried for added masses and springs. ``min_score`` (% of held-out error removed)
     and ``min_delta_aic``: evidence an effect needs to be warranted.
@@ -74,6 +76,7 @@ class DiagnoseOptions:
     noise_shape: float = 0.01
     folds: int = 4
     shortlist: int = 6
+    per_kind: int = 2
     max_structural: int = 3
     max_nodes: int = 10
     min_score: float = 20.0
@@ -137,13 +140,17 @@ _SCAN = (0.0, -1.5, -3.0, -4.5, -6.0, 1.5)  # log-factors tried before fitting a
 _SCAN_ADDED = (-3.0, -2.0, -1.0, 0.0, 1.0, 2.0, 3.0)  # ... an added mass or spring (× its reference)
 
 
+_SCAN_LAW = tuple((np.log1p(alpha), np.log1p(a)) for alpha in (-0.2, 0.0, 0.2)
+                  for a in (-0.4, -0.2, 0.0, 0.2, 0.4))  # (E0 factor, a) of a frequency law
+
+
 def _scan_start(problem: Problem, ext: Extension, theta_b: np.ndarray, grid=_SCAN) -> np.ndarray:
-    """Best starting log-factor of an effect on a coarse grid: a fit from the reference
-    alone can stall where modes swap partners on the way (a much softer joint, a heavy
-    added mass)."""
+    """Best starting θ of an effect on a coarse grid: a fit from the reference alone can
+    stall where modes swap partners on the way (a much softer joint, a heavy added mass,
+    a strong frequency law)."""
     p = eqx.tree_at(lambda q: q.extension, problem, ext, is_leaf=lambda x: x is None)
     costs = [float(_cost_jit(jnp.asarray(np.append(theta_b, t)), p)) for t in grid]
-    return np.array([grid[int(np.argmin(costs))]])
+    return np.atleast_1d(np.asarray(grid[int(np.argmin(costs))], float))
 
 
 def _fold_masks(n: int, folds: int) -> list[np.ndarray]:
@@ -394,7 +401,7 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     screened = sorted((c for c in cands if c.family != "structural"), key=lambda c: -c.screen)
     short = screened[: options.shortlist]
     for kind in options.kinds:
-        short += [c for c in screened if c.effect.kind == kind][:1]
+        short += [c for c in screened if c.effect.kind == kind][: options.per_kind]
     short = list(dict.fromkeys(short)) + [c for c in cands if c.family == "structural"]
     say(f"{len(cands)} candidates screened; fitting {len(short)} with {len(masks) - 1}-fold cross-validation")
 
@@ -408,6 +415,8 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     for c in short:
         if c.effect.kind in ("added_mass", "boundary_spring") and c.family == "mask":
             c.theta0 = _scan_start(problem, c.ext, theta_b, _SCAN_ADDED)
+        if c.family == "visco":
+            c.theta0 = _scan_start(problem, c.ext, theta_b, _SCAN_LAW)
     for family in ("mask", "visco"):
         group = [c for c in short if c.family == family]
         if group:
@@ -726,7 +735,14 @@ def add_effect(model: Model, test: ModalData, effect: Effect, parameters: Parame
 
 
 def _scanned(model: Model, test: ModalData, start: Effect, opts: Options) -> Effect:
-    """``start`` with its values scaled by the best factor of :data:`_SCAN` (structural kinds)."""
+    """``start`` moved to the best point of a coarse scan: the values of a joint, support or
+    added mass scaled by a factor of :data:`_SCAN`, a frequency law from :data:`_SCAN_LAW`."""
+    if start.kind == "frequency_dependent_stiffness":
+        extended = start.apply(model)
+        ext = extension(extended, k_log=start.elements(model), f_ref=start.values["f_ref_hz"])
+        problem = build_problem(extended, test, ParameterSet((), replace(opts, passive_modes=())))
+        t = _scan_start(problem, ext, np.zeros(0), _SCAN_LAW)
+        return replace(start, values=dict(start.values, alpha=float(np.expm1(t[0])), a=float(np.expm1(t[1]))))
     if start.kind not in ("joint", "boundary_spring", "added_mass"):
         return start
     extended = start.apply(model)

@@ -11,8 +11,7 @@ the bulk data's own ids) and its physical values; ``effect.apply(model)`` (also
 - ``boundary_spring``: springs to ground at a grid, ``k`` (N/m) on translations of an
   unconstrained grid, or ``k_trans``/``k_rot`` on the released components of an SPC;
 - ``frequency_dependent_stiffness``: ``E(f) = E0 (1 + a ln(f/f_ref))`` on a group with the
-  factor ``alpha`` on E0 (:class:`jaxfem.Viscoelastic`);
-- ``damping``: a loss factor ``eta`` of a group (modal strain energy, thesis §3.3).
+  factor ``alpha`` on E0 (:class:`jaxfem.Viscoelastic`).
 
 For fitting, :class:`Extension` expresses an effect's free parameters as traced masks on
 a model, so that many candidates of the same model structure share one compiled solver
@@ -34,9 +33,9 @@ from jaxfem import _edit as edit
 
 from ._parameters import Parameter
 
-KINDS = ("stiffness", "mass", "joint", "added_mass", "boundary_spring",
-         "frequency_dependent_stiffness", "damping")
+KINDS = ("stiffness", "mass", "joint", "added_mass", "boundary_spring", "frequency_dependent_stiffness")
 _K_BLOCKS = ("beams", "rods", "springs", "bushes")
+_THETA_MAX = 25.0  # |log-factor| beyond which a trial step is clipped (e^25 ≈ 7e10)
 _M_BLOCKS = ("beams", "rods", "masses")
 
 
@@ -45,7 +44,7 @@ class Effect:
     """A physical effect at a place in the model, with its values (SI units).
 
     ``values``: ``alpha``/``beta`` (relative factors), ``k_trans`` N/m, ``k_rot``
-    N·m/rad, ``k`` N/m, ``m`` kg, ``a`` (1), ``f_ref_hz`` Hz, ``eta`` (1).
+    N·m/rad, ``k`` N/m, ``m`` kg, ``a`` (1), ``f_ref_hz`` Hz.
     """
 
     kind: str
@@ -73,7 +72,7 @@ class Effect:
     def apply(self, model: Model) -> Model:
         """The model with this effect at its ``values``."""
         v = self.values
-        if self.kind in ("stiffness", "mass", "frequency_dependent_stiffness", "damping"):
+        if self.kind in ("stiffness", "mass", "frequency_dependent_stiffness"):
             group = [self.elements(model).tolist()]
             if self.kind == "stiffness" or self.kind == "frequency_dependent_stiffness":
                 model = jaxfem.correct(model, group, jnp.array([v.get("alpha", 0.0)]))
@@ -85,8 +84,6 @@ class Effect:
                                     jaxfem.Viscoelastic(*masks, jnp.asarray(float(v.get("a", 0.0))),
                                                         jnp.asarray(float(v["f_ref_hz"]))),
                                     is_leaf=lambda x: x is None)
-            if self.kind == "damping":
-                raise ValueError("a damping effect changes no stiffness or mass: use it with FRF prediction")
             return model
         if self.kind == "added_mass":
             for node in self.nodes:
@@ -242,6 +239,7 @@ class Extension(eqx.Module):
         return 2 if self.visco else 1
 
     def __call__(self, model: Model, theta: Float[Array, " e"]) -> Model:
+        theta = jnp.clip(theta, -_THETA_MAX, _THETA_MAX)  # a wild trial step stays finite
         s = jnp.exp(theta[0])
         for name, log, add in zip(_K_BLOCKS, self.k_log, self.k_add):
             blk = getattr(model, name)
@@ -305,7 +303,7 @@ def at_reference(model: Model, effect: Effect, f_test_hz) -> Effect:
     geometric mean of the test frequencies."""
     kind = effect.kind
     f = np.asarray(f_test_hz, float)
-    if kind in ("stiffness", "mass", "damping"):
+    if kind in ("stiffness", "mass"):
         values = {}
     elif kind == "frequency_dependent_stiffness":
         values = {"a": 0.0, "f_ref_hz": float(np.exp(np.mean(np.log(f))))}
