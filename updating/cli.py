@@ -499,7 +499,7 @@ def _diagnosis(model, test, params, *, model_name: str, test_name: str, json_out
         f"{n['node']} {n['score']:.2f}" for n in rep["localisation"]["nodes"][:5]))
     typer.echo(f"{'rank':>4} {'effect':<34} {'score':>6} {'ΔAIC':>8} {'held-out Δf [%]':>16}  warranted")
     def fmt(x, spec):
-        return format(x, spec) if x is not None and np.isfinite(x) else format("–", spec[:-2].lstrip("+"))
+        return format(x, spec) if x is not None and np.isfinite(x) else format("–", spec.split(".")[0])
 
     for e in rep["effects"][:10]:
         where = f"{e['kind']} {e['where']}"[:34]
