@@ -136,6 +136,7 @@ def _solve(K: AbstractSymmetricMatrix, M: AbstractSymmetricMatrix) -> _Eig:
     )
     half = jsl.solve_triangular(lm, ks, lower=True)
     std = jsl.solve_triangular(lm, half.T, lower=True)
+    std = eqx.error_if(std, ~jnp.all(jnp.isfinite(std)), "stiffness matrix has NaN or inf entries")
     lam, y = jnp.linalg.eigh(0.5 * (std + std.T))
     return _Eig(lam, y, lm, lb, x, a, b)
 

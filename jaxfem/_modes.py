@@ -72,18 +72,19 @@ def modes(model: Model, n_modes: int, *, n_basis: int | None = None
 
     def one(j):
         def newton(lam, _):
-            mu, z = jnp.linalg.eigh(k_s + _shift(frozen[0], lam) * g_s)
-            slope = 1.0 - (z[:, j] @ g_s @ z[:, j]) * _shift_slope(frozen[0], lam)
-            return lam - (lam - mu[j]) / slope, None
+            mu, z = jnp.linalg.eigh(jnp.nan_to_num(k_s + _shift(frozen[0], lam) * g_s))
+            slope = jnp.maximum(1.0 - (z[:, j] @ g_s @ z[:, j]) * _shift_slope(frozen[0], lam), 0.2)
+            new = lam - (lam - mu[j]) / slope
+            return jnp.where(jnp.isfinite(new), new, lam), None  # damped, never leaves the reals
 
         lam_star, _ = jax.lax.scan(newton, frozen[1][j, j] / frozen[3][j, j], None, length=_NEWTON)
-        mu, z = jnp.linalg.eigh(k_s + _shift(frozen[0], lam_star) * g_s)
+        mu, z = jnp.linalg.eigh(jnp.nan_to_num(k_s + _shift(frozen[0], lam_star) * g_s))
         y = jax.scipy.linalg.solve_triangular(chol.T, z, lower=False)  # M_r-orthonormal
         yj = y[:, j]
         # λ: Rayleigh quotient at fixed s (stationary: exact first derivative), then the
         # implicit-function Newton step through s(λ)
         rq = yj @ (k_r + _shift(law, lam_star) * g) @ yj / (yj @ m_r @ yj)
-        slope = 1.0 - (yj @ frozen[2] @ yj) * _shift_slope(frozen[0], lam_star)
+        slope = jnp.maximum(1.0 - (yj @ frozen[2] @ yj) * _shift_slope(frozen[0], lam_star), 0.2)
         lam_j = lam_star - (lam_star - rq) / slope
         # φ: first-order modal expansion in the reduced space; its value is exactly y_j
         gap = mu[j] - mu
@@ -102,14 +103,22 @@ def _floor(law):
     return (2 * jnp.pi * 1e-2 * law.f_ref) ** 2  # the law is held constant below f_ref/100
 
 
-def _shift(law, lam):
-    """s(f) = a ln(f/f_ref) at λ = (2π f)²."""
+_S_RANGE = (-0.9, 9.0)  # the law's factor 1 + s is held within [0.1, 10]
+
+
+def _raw_shift(law, lam):
     return law.a * 0.5 * jnp.log(jnp.maximum(lam, _floor(law)) / (2 * jnp.pi * law.f_ref) ** 2)
 
 
+def _shift(law, lam):
+    """s(f) = a ln(f/f_ref) at λ = (2π f)², limited to :data:`_S_RANGE`."""
+    return jnp.clip(_raw_shift(law, lam), *_S_RANGE)
+
+
 def _shift_slope(law, lam):
-    """ds/dλ = a / (2λ) (zero below the floor)."""
-    return jnp.where(lam > _floor(law), law.a / (2 * jnp.maximum(lam, _floor(law))), 0.0)
+    """ds/dλ = a / (2λ) (zero below the floor and where s is limited)."""
+    inside = (lam > _floor(law)) & (_raw_shift(law, lam) > _S_RANGE[0]) & (_raw_shift(law, lam) < _S_RANGE[1])
+    return jnp.where(inside, law.a / (2 * jnp.maximum(lam, _floor(law))), 0.0)
 
 
 def _enrich(K, M, k_g, lam0, phi, n_modes):

@@ -179,7 +179,13 @@ def _run(problem: Problem, exts: list, theta0s: list, masks, max_steps, keep=Non
 
     results = []
     for ext, th in zip(exts, theta0s):
-        full = [np.asarray(o) for o in fit(ext, th, masks[0])]
+        try:
+            full = [np.asarray(o) for o in fit(ext, th, masks[0])]
+        except RuntimeError as err:  # a trial step made the model non-finite: report, do not rank
+            results.append({"theta": np.asarray(th), "cost": float("inf"), "cv_cost": float("nan"),
+                            "freq_dev": np.full(len(lam_e), np.nan), "mac": np.full(len(lam_e), np.nan),
+                            "heldout_freq_dev": np.full(len(lam_e), np.nan), "error": str(err).splitlines()[0]})
+            continue
         res = {"theta": full[0], "cost": float(full[1]), "cv_cost": float("nan"), "freq_dev": deviation(full),
                "mac": np.where(full[4], full[5], np.nan), "heldout_freq_dev": np.full(len(lam_e), np.nan)}
         if keep is None or keep(res["cost"]):
@@ -444,7 +450,7 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
         values = c.values(res["theta"][n_b:])
         d_aic = aic(res["cost"], k) - base_aic
         score = 100 * (1 - res["cv_cost"] / base["cv_cost"]) if base["cv_cost"] > 0 else 0.0  # NaN: not CV'd
-        notes = _plausibility(c, values, mass)
+        notes = _plausibility(c, values, mass) + ([f"fit failed: {res['error']}"] if "error" in res else [])
         eff = replace(c.effect, values=values)
         c.effect = eff
         effects.append({
@@ -692,7 +698,7 @@ def add_effect(model: Model, test: ModalData, effect: Effect, parameters: Parame
         before = pair_modes(np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model),
                             np.asarray(test.frequencies_hz), np.asarray(problem.phi_e),
                             min_mac=problem.min_mac, max_freq_dev=problem.max_freq_dev)
-    start = effect if effect.values else _scanned(model, test, at_reference(model, effect, test.frequencies_hz), opts)
+    start = effect if effect.values else start_values(model, test, effect, opts)
     extended = start.apply(model)
     eparams = effect_parameters(start, model, extended)
     after = update(extended, test, ParameterSet(base + eparams, opts), progress=progress)
@@ -734,9 +740,12 @@ def add_effect(model: Model, test: ModalData, effect: Effect, parameters: Parame
     return Confirmation(final, before, after, is_passive, report)
 
 
-def _scanned(model: Model, test: ModalData, start: Effect, opts: Options) -> Effect:
-    """``start`` moved to the best point of a coarse scan: the values of a joint, support or
-    added mass scaled by a factor of :data:`_SCAN`, a frequency law from :data:`_SCAN_LAW`."""
+def start_values(model: Model, test: ModalData, effect: Effect, opts: Options | None = None) -> Effect:
+    """Starting values for updating an effect: :func:`at_reference`, moved to the best point
+    of a coarse scan (a joint, support or added mass scaled by a factor of :data:`_SCAN`,
+    a frequency law from :data:`_SCAN_LAW`)."""
+    start = at_reference(model, effect, test.frequencies_hz)
+    opts = opts or Options()
     if start.kind == "frequency_dependent_stiffness":
         extended = start.apply(model)
         ext = extension(extended, k_log=start.elements(model), f_ref=start.values["f_ref_hz"])

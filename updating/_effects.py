@@ -250,7 +250,7 @@ class Extension(eqx.Module):
             model = eqx.tree_at(lambda m, name=name: getattr(m, name).m_scale, model,
                                 blk.m_scale * jnp.exp(theta[0] * log) + add * s)
         if self.visco:
-            law = jaxfem.Viscoelastic(*self.k_log, jnp.expm1(theta[1]), self.f_ref)
+            law = jaxfem.Viscoelastic(*self.k_log, jnp.expm1(jnp.minimum(theta[1], 1.0)), self.f_ref)  # a ≤ e − 1
             model = eqx.tree_at(lambda m: m.viscoelastic, model, law, is_leaf=lambda x: x is None)
         return model
 

@@ -371,12 +371,13 @@ def update(
     except ValueError as err:
         _fail(f"{params_path}: {err}")
     if add_effect:
-        from ._effects import at_reference, effect_parameters, parse_effect
+        from ._diagnose import start_values
+        from ._effects import effect_parameters, parse_effect
 
         extra = []
         for spec in add_effect:
             try:
-                effect = at_reference(model, parse_effect(spec), test.frequencies_hz)
+                effect = start_values(model, test, parse_effect(spec), params.options)
                 extended = effect.apply(model)
             except (ValueError, KeyError) as err:
                 _fail(f"--add-effect {spec}: {err}")
