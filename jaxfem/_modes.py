@@ -93,7 +93,7 @@ def modes(model: Model, n_modes: int, *, n_basis: int | None = None
         coef = jnp.where(apart, (y.T @ r) / jnp.where(apart, gap, 1.0), 0.0)
         return lam_j, yj + y @ coef - 0.5 * yj * (yj @ (m_r - frozen[3]) @ yj)
 
-    lam, y = jax.vmap(one)(jnp.arange(n_modes))
+    lam, y = jax.lax.map(one, jnp.arange(n_modes))  # one mode at a time: a native XLA-CPU crash was seen with vmap here
     shapes = basis @ y.T
     peak = jnp.take_along_axis(shapes, jnp.argmax(jnp.abs(shapes), axis=0)[None], axis=0)
     return lam, shapes * jax.lax.stop_gradient(jnp.sign(peak))  # largest component positive
