@@ -12,6 +12,10 @@ import numpy as np
 import typer
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help=__doc__)
+ModelArg = Annotated[Path, typer.Argument(metavar="MODEL.bdf", exists=True, dir_okay=False,
+                                          help="Nastran bulk data (SI units)")]
+TestArg = Annotated[Path, typer.Argument(metavar="TEST.uff", exists=True, dir_okay=False,
+                                         help="universal file with the measured modes (dataset 55)")]
 
 
 @app.callback()
@@ -262,10 +266,8 @@ def _write_json(path: Path, data: dict) -> None:
 
 @app.command()
 def correlate(
-    model_path: Annotated[Path, typer.Argument(metavar="MODEL.bdf", exists=True, dir_okay=False,
-                                               help="Nastran bulk data (SI units)")],
-    test_path: Annotated[Path, typer.Argument(metavar="TEST.uff", exists=True, dir_okay=False,
-                                              help="universal file with the measured modes (dataset 55)")],
+    model_path: ModelArg,
+    test_path: TestArg,
     json_out: Annotated[Path, typer.Option("--json", help="write results as JSON")],
     plots: Annotated[Path | None, typer.Option("--plots", help="directory for PNG plots (needs matplotlib, the plot extra)")] = None,
     n: Annotated[int | None, typer.Option("-n", "--n-modes",
@@ -329,10 +331,8 @@ def correlate(
 
 @app.command()
 def update(
-    model_path: Annotated[Path, typer.Argument(metavar="MODEL.bdf", exists=True, dir_okay=False,
-                                               help="Nastran bulk data (SI units)")],
-    test_path: Annotated[Path, typer.Argument(metavar="TEST.uff", exists=True, dir_okay=False,
-                                              help="universal file with the measured modes (dataset 55)")],
+    model_path: ModelArg,
+    test_path: TestArg,
     params_path: Annotated[Path, typer.Option("--params", metavar="PARAMS.toml", exists=True, dir_okay=False,
                                               help="updating parameters and options (TOML, schema in README)")],
     json_out: Annotated[Path, typer.Option("--json", help="write results as JSON")],
@@ -593,10 +593,8 @@ def _json_safe(x):
 
 @app.command()
 def diagnose(
-    model_path: Annotated[Path, typer.Argument(metavar="MODEL.bdf", exists=True, dir_okay=False,
-                                               help="Nastran bulk data (SI units)")],
-    test_path: Annotated[Path, typer.Argument(metavar="TEST.uff", exists=True, dir_okay=False,
-                                              help="universal file with the measured modes (dataset 55)")],
+    model_path: ModelArg,
+    test_path: TestArg,
     json_out: Annotated[Path, typer.Option("--json", help="write diagnosis.json")],
     report: Annotated[Path | None, typer.Option("--report", help="directory for report.html and its PNG plots")] = None,
     params_path: Annotated[Path | None, typer.Option("--params", metavar="PARAMS.toml", exists=True, dir_okay=False,
