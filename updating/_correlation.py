@@ -322,6 +322,29 @@ class Pairing(eqx.Module):
                 rows.append((j + 1, None, f, None, None, None))
         return rows
 
+    def per_test(self) -> tuple[Float[np.ndarray, " n_e"], Float[np.ndarray, " n_e"]]:
+        """Δf (%) and MAC of every test mode in order, NaN where unpaired."""
+        dev, mac = np.full(self.f_test.size, np.nan), np.full(self.f_test.size, np.nan)
+        idx = np.asarray(self.test, dtype=np.int64)
+        dev[idx] = 100.0 * np.asarray(self.freq_dev, dtype=np.float64)
+        mac[idx] = np.asarray(self.mac, dtype=np.float64)
+        return dev, mac
+
+    def summary(self) -> dict:
+        """JSON-ready: paired modes (numbered from 1, Δf in %), unpaired modes on both
+        sides, warnings, RMS Δf (%) and mean MAC over the pairs (None without pairs)."""
+        rows = [{"test": t, "model": m, "f_test_hz": ft, "f_model_hz": fm, "freq_dev_pct": d, "mac": c}
+                for t, m, ft, fm, d, c in self.table() if m is not None]
+        dev = 100.0 * np.asarray(self.freq_dev, dtype=np.float64)
+        return {
+            "paired_modes": rows,
+            "unpaired_test": [int(j) + 1 for j in self.unpaired_test],
+            "unpaired_model": [int(i) + 1 for i in self.unpaired_model],
+            "warnings": list(self.warnings),
+            "rms_freq_dev_pct": float(np.sqrt(np.mean(dev**2))) if dev.size else None,
+            "mean_mac": float(np.mean(self.mac)) if dev.size else None,
+        }
+
 
 def _check_thresholds(min_mac, max_freq_dev) -> tuple[float, float]:
     min_mac, max_freq_dev = float(min_mac), float(max_freq_dev)

@@ -40,6 +40,7 @@ from identification import ModalData
 from jaxfem import Model
 from jaxfem import _edit as edit
 
+from ._compiled import Compiled
 from ._correlation import comac, pair_modes
 from ._effects import (
     Effect,
@@ -55,6 +56,7 @@ from ._effects import (
 )
 from ._localisation import group_scores, reduction, residual_forces
 from ._parameters import Options, Parameter, Parameterisation, ParameterSet
+from ._report import json_number
 from ._residuals import Problem, evaluate, residuals
 from ._solve import Iteration, UpdateResult, build_problem, update
 
@@ -133,8 +135,15 @@ def _solve_one(theta0, problem: Problem, max_steps: int):
     return theta, fit, held, ev.lam_a, ev.paired, ev.mac
 
 
-_solve_jit = eqx.filter_jit(_solve_one)
-_cost_jit = eqx.filter_jit(lambda theta, problem: _cost_rows(theta, problem, problem.active)[0])
+def _cost_one(theta, problem: Problem):
+    return _cost_rows(theta, problem, problem.active)[0]
+
+
+class _Fits:
+    """The compiled fit and cost of one diagnosis (freed with it, see :mod:`._compiled`)."""
+
+    def __init__(self):
+        self.solve, self.cost = Compiled(_solve_one), Compiled(_cost_one)
 
 _SCAN = (0.0, -1.5, -3.0, -4.5, -6.0, 1.5)  # log-factors tried before fitting a joint or support
 _SCAN_ADDED = (-3.0, -2.0, -1.0, 0.0, 1.0, 2.0, 3.0)  # ... an added mass or spring (× its reference)
@@ -144,12 +153,12 @@ _SCAN_LAW = tuple((np.log1p(alpha), np.log1p(a)) for alpha in (-0.2, 0.0, 0.2)
                   for a in (-0.4, -0.2, 0.0, 0.2, 0.4))  # (E0 factor, a) of a frequency law
 
 
-def _scan_start(problem: Problem, ext: Extension, theta_b: np.ndarray, grid=_SCAN) -> np.ndarray:
+def _scan_start(fits: _Fits, problem: Problem, ext: Extension, theta_b: np.ndarray, grid=_SCAN) -> np.ndarray:
     """Best starting θ of an effect on a coarse grid: a fit from the reference alone can
     stall where modes swap partners on the way (a much softer joint, a heavy added mass,
     a strong frequency law)."""
     p = eqx.tree_at(lambda q: q.extension, problem, ext, is_leaf=lambda x: x is None)
-    costs = [float(_cost_jit(jnp.asarray(np.append(theta_b, t)), p)) for t in grid]
+    costs = [float(fits.cost(jnp.asarray(np.append(theta_b, t)), p)) for t in grid]
     return np.atleast_1d(np.asarray(grid[int(np.argmin(costs))], float))
 
 
@@ -159,7 +168,7 @@ def _fold_masks(n: int, folds: int) -> list[np.ndarray]:
     return [np.ones(n, bool)] + [ids % folds != k for k in range(min(folds, n))]
 
 
-def _run(problem: Problem, exts: list, theta0s: list, masks, max_steps, keep=None) -> list[dict]:
+def _run(fits: _Fits, problem: Problem, exts: list, theta0s: list, masks, max_steps, keep=None) -> list[dict]:
     """Fit every extension on all modes, then on every fold (held-out mask) if
     ``keep(cost)`` (default: always); the folds start at the all-modes fit.
 
@@ -170,7 +179,7 @@ def _run(problem: Problem, exts: list, theta0s: list, masks, max_steps, keep=Non
     def fit(ext, th, m):
         p = eqx.tree_at(lambda q: (q.extension, q.active), problem, (ext, jnp.asarray(m)),
                         is_leaf=lambda x: x is None)
-        return _solve_jit(jnp.asarray(th), p, max_steps)
+        return fits.solve(jnp.asarray(th), p, max_steps)
 
     lam_e = np.asarray(problem.lam_e)
 
@@ -292,13 +301,6 @@ class Diagnosis:
     sensor_modes: tuple  # baseline model frequencies (Hz) and shapes at the sensors
 
 
-def _pairing_rows(pairing) -> list[dict]:
-    return [{"test": int(t) + 1, "model": int(m) + 1, "f_test_hz": float(fe), "f_model_hz": float(fa),
-             "freq_dev_pct": 100 * float(d), "mac": float(c)}
-            for t, m, fe, fa, d, c in zip(pairing.test, pairing.model, pairing.f_test, pairing.f_model,
-                                          pairing.freq_dev, pairing.mac)]
-
-
 def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = None, *,
              options: DiagnoseOptions = DiagnoseOptions(),
              progress: Callable[[str], None] | None = None) -> Diagnosis:
@@ -319,6 +321,7 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     pset = ParameterSet(params, Options(eigenvalue_weight=w_lam, regularisation=sigma2 / 9,
                                         n_model_modes=parameters.options.n_model_modes if parameters else None))
     masks = _fold_masks(ne, options.folds)
+    fits = _Fits()
 
     # -- localisation at the nominal model: where to put node-based candidates
     say("localising the error (residual forces)")
@@ -336,155 +339,66 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
 
     # -- baseline: the engineer's parameters fitted on all modes and on each fold
     say(f"baseline fit ({n_b} parameters, {len(masks) - 1}-fold cross-validation over {ne} modes)")
-    base = _run(problem, [zero], [np.zeros(n_b + 1)], masks, options.max_steps)[0]
+    base = _run(fits, problem, [zero], [np.zeros(n_b + 1)], masks, options.max_steps)[0]
     theta_b = base["theta"][:n_b]
 
     # -- screening Jacobian at the baseline: every element's stiffness and mass, dormant ones
     say("screening (sensitivity of every element)")
-    r, J_k, J_m, k_ids, m_ids = _element_jacobian(problem, np.asarray(base["theta"]))
-    J_b = _baseline_columns(problem, base["theta"], n_b)
-    rho_k = reduction(r, J_k, J_b)
-    elem_a = {int(e): float(v) for e, v in zip(k_ids, rho_k)}
+    screen = _Screen.at(problem, base["theta"], n_b, test)
+    elem_a = {int(e): float(v) for e, v in zip(screen.k_ids, reduction(screen.r, screen.J_k, screen.J_b))}
     node_a = _node_max(aug, elem_a)
-
-    def col(J, ids, eids):
-        return J[:, np.isin(ids, np.asarray(list(eids), np.int64))].sum(axis=1, keepdims=True)
-
-    row_mode = _row_modes(problem)
-    f_e = np.asarray(test.frequencies_hz)
-    f_ref = float(np.exp(np.mean(np.log(f_e))))
-    cands: list[Candidate] = []
-    taken = {(p.kind, tuple(sorted(_param_eids(model, p).tolist()))) for p in params}
-    for pid in _stiffness_pids(model):
-        groups = [(model.element_ids(pids=[pid]), f"pid {pid}", (pid,), ())]
-        if pid in _structural_pids(model):
-            groups += [(ids, label, (pid,), tuple(int(e) for e in ids)) for ids, label in _halves(model, pid)]
-        for ids, label, pids, eids in groups:
-            for kind in ("stiffness", "mass", "frequency_dependent_stiffness"):
-                if kind == "mass" and pid not in _structural_pids(model):
-                    continue
-                if kind == "frequency_dependent_stiffness" and eids:
-                    continue
-                if (kind, tuple(sorted(ids.tolist()))) in taken:
-                    continue  # already a baseline parameter
-                eff = Effect(kind, pids=pids, eids=eids, label=label)
-                if kind == "stiffness":
-                    c = Candidate(eff, "mask", extension(aug, k_log=ids), {})
-                    cols = col(J_k, k_ids, ids)
-                elif kind == "mass":
-                    c = Candidate(eff, "mask", extension(aug, m_log=ids), {})
-                    cols = col(J_m, m_ids, ids)
-                else:
-                    c = Candidate(eff, "visco", extension(aug, k_log=ids, f_ref=f_ref), {"f_ref_hz": f_ref},
-                                  theta0=np.zeros(2))
-                    g = col(J_k, k_ids, ids)
-                    cols = np.concatenate([g, g * np.log(f_e[row_mode] / f_ref)[:, None]], axis=1)
-                c.screen = float(reduction(r, cols, J_b, joint=True))
-                cands.append(c)
-    for node in nodes:
-        for kind, ids, J, ref, ident in (("added_mass", [mass_ids[node]], J_m, {"m": m_ref}, m_ids),
-                                         ("boundary_spring", spring_ids[node], J_k, {"k": k_ref}, k_ids)):
-            cols = col(J, ident, ids)
-            ext = extension(aug, m_add=ids) if kind == "added_mass" else extension(aug, k_add=ids)
-            c = Candidate(Effect(kind, nodes=(node,)), "mask", ext, ref)
-            c.screen = float(reduction(r, cols, J_b)[0])
-            cands.append(c)
+    cands = _group_candidates(model, aug, params, screen) + _node_candidates_at(
+        aug, nodes, screen, mass_ids, spring_ids, m_ref, k_ref)
     cands = [c for c in cands if c.effect.kind in options.kinds]
-
-    # -- structural candidates (own model each): joints and flexible supports near the error
     node_score = _combine(node_a, node_b)
-    structural = []
-    if "joint" in options.kinds:
-        structural += _joints(model)
-    if "boundary_spring" in options.kinds:
-        structural += [Effect("boundary_spring", nodes=(int(n),), label=f"support at grid {int(n)}")
-                       for n in model.node_ids if constrained_components(model, int(n)) and elements_at(model, int(n))]
-    structural.sort(key=lambda e: -max(node_score.get(n, 0.0) for n in e.nodes))
-    for eff in structural[: options.max_structural]:
-        cands.append(_structural_candidate(model, eff))
-
-    # -- shortlist: best screened candidates overall and per kind
-    screened = sorted((c for c in cands if c.family != "structural"), key=lambda c: -c.screen)
-    short = screened[: options.shortlist]
-    for kind in options.kinds:
-        short += [c for c in screened if c.effect.kind == kind][: options.per_kind]
-    short = list(dict.fromkeys(short)) + [c for c in cands if c.family == "structural"]
+    cands += [_structural_candidate(model, e) for e in _structural_effects(model, node_score, options)]
+    short = _shortlist(cands, options)
     say(f"{len(cands)} candidates screened; fitting {len(short)} with {len(masks) - 1}-fold cross-validation")
 
+    # -- fits: all modes, then the folds for those that could pass the AIC test
     n_rows = ne * (1 + ns)
 
     def theta_start(c):
         return np.concatenate([theta_b, c.theta0])
 
-    def keep(k_e):  # cross-validate only what could pass the AIC test
+    def keep(k_e):
         return lambda cost: n_rows * np.log(max(cost, 1e-300) / base["cost"]) + 2 * k_e <= -options.min_delta_aic
+
     for c in short:
         if c.effect.kind in ("added_mass", "boundary_spring") and c.family == "mask":
-            c.theta0 = _scan_start(problem, c.ext, theta_b, _SCAN_ADDED)
+            c.theta0 = _scan_start(fits, problem, c.ext, theta_b, _SCAN_ADDED)
         if c.family == "visco":
-            c.theta0 = _scan_start(problem, c.ext, theta_b, _SCAN_LAW)
+            c.theta0 = _scan_start(fits, problem, c.ext, theta_b, _SCAN_LAW)
     for family in ("mask", "visco"):
         group = [c for c in short if c.family == family]
         if group:
             say(f"  {family}: {len(group)} candidates × {len(masks)} fits ({time.perf_counter() - start:.0f} s)")
-            for c, res in zip(group, _run(problem, [c.ext for c in group], [theta_start(c) for c in group],
+            for c, res in zip(group, _run(fits, problem, [c.ext for c in group], [theta_start(c) for c in group],
                                           masks, options.max_steps, keep(group[0].ext.n_params))):
                 c.result = res
     for c in short:
         if c.family == "structural":
             say(f"  {c.effect.kind} {c.effect.where()} ({time.perf_counter() - start:.0f} s)")
             p = build_problem(c.model, test, pset)
-            c.theta0 = _scan_start(p, c.ext, theta_b)
-            c.result = _run(p, [c.ext], [theta_start(c)], masks, options.max_steps, keep(1))[0]
+            c.theta0 = _scan_start(fits, p, c.ext, theta_b)
+            c.result = _run(fits, p, [c.ext], [theta_start(c)], masks, options.max_steps, keep(1))[0]
 
-    # -- evidence
-
-    def aic(cost, k):
-        return n_rows * np.log(max(cost, 1e-300) / n_rows) + 2 * k
-
-    base_aic = aic(base["cost"], n_b)
-    effects = []
-    for c in short:
-        res = c.result
-        k = n_b + len(c.theta0)
-        values = c.values(res["theta"][n_b:])
-        d_aic = aic(res["cost"], k) - base_aic
-        score = 100 * (1 - res["cv_cost"] / base["cv_cost"]) if base["cv_cost"] > 0 else 0.0  # NaN: not CV'd
-        notes = _plausibility(c, values, mass) + ([f"fit failed: {res['error']}"] if "error" in res else [])
-        eff = replace(c.effect, values=values)
-        c.effect = eff
-        effects.append({
-            "kind": eff.kind, "pids": list(eff.pids), "eids": list(eff.eids), "nodes": list(eff.nodes),
-            "where": eff.where(), "parameters": values, "score": float(score), "delta_aic": float(d_aic),
-            "screen": float(c.screen) if np.isfinite(c.screen) else None,
-            "chi2_per_row": float(res["cost"] / sigma2 / n_rows),
-            "heldout_rms_freq_dev_pct_before": _rms(base["heldout_freq_dev"]),
-            "heldout_rms_freq_dev_pct_after": _rms(res["heldout_freq_dev"]),
-            "rms_freq_dev_pct_after": _rms(res["freq_dev"]),
-            "plausible": not notes, "plausibility": notes,
-            "warranted": bool(score >= options.min_score and -d_aic >= options.min_delta_aic and not notes),
-            "cross_validated": bool(np.isfinite(score)),
-        })
-    order = sorted(range(len(effects)), key=lambda i: (
-        -effects[i]["warranted"], -np.nan_to_num(effects[i]["score"], nan=-np.inf), effects[i]["delta_aic"]))
-    effects = [effects[i] for i in order]
-    ranked = [short[i] for i in order]
-    for rank, e in enumerate(effects, 1):
-        e["rank"] = rank
+    effects, ranked = _evidence(short, base, n_b, n_rows, sigma2, mass, options)
     best = ranked[0].effect if effects and effects[0]["warranted"] else None
 
     # -- comparison at the baseline
     ev = evaluate(jnp.asarray(base["theta"]), problem)
-    pairing = pair_modes(np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model), f_e,
+    pairing = pair_modes(np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model), screen.f_e,
                          np.asarray(problem.phi_e), min_mac=problem.min_mac, max_freq_dev=problem.max_freq_dev)
+    compared = pairing.summary()
     co = np.asarray(comac(np.asarray(ev.phi_model)[:, pairing.model], np.asarray(problem.phi_e)[:, pairing.test]))
     group_b = group_scores(elem_b, model)
     group_a = _group_from_screen(cands)
     groups = _combine(group_a, group_b)
     report = {
-        "paired_modes": _pairing_rows(pairing),
-        "unpaired_test": [int(i) + 1 for i in pairing.unpaired_test],
-        "unpaired_model": [int(i) + 1 for i in pairing.unpaired_model][:10],
+        "paired_modes": compared["paired_modes"],
+        "unpaired_test": compared["unpaired_test"],
+        "unpaired_model": compared["unpaired_model"][:10],
         "baseline": {"parameters": [{"name": p.name, "alpha": float(np.expm1(t))} for p, t in zip(params, theta_b)],
                      "rms_freq_dev_pct": _rms(base["freq_dev"]), "mean_mac": float(np.nanmean(base["mac"])),
                      "heldout_rms_freq_dev_pct": _rms(base["heldout_freq_dev"]),
@@ -508,6 +422,138 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     return Diagnosis(report, best, ranked, model, params, _combine(
         {e: v for e, v in elem_a.items() if e in set(model.element_ids().tolist())}, elem_b), node_score,
         (np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model)))
+
+
+@dataclass
+class _Screen:
+    """Weighted residual ``r`` at the baseline and its linearisation: ``J_k``/``J_m`` per
+    element stiffness/mass scale (ids ``k_ids``/``m_ids``), ``J_b`` the baseline
+    parameters; ``row_mode``: test mode of each row; ``f_e``, ``f_ref`` (Hz)."""
+
+    r: np.ndarray
+    J_k: np.ndarray
+    J_m: np.ndarray
+    k_ids: np.ndarray
+    m_ids: np.ndarray
+    J_b: np.ndarray
+    row_mode: np.ndarray
+    f_e: np.ndarray
+    f_ref: float
+
+    @classmethod
+    def at(cls, problem: Problem, theta, n_b: int, test: ModalData) -> _Screen:
+        r, J_k, J_m, k_ids, m_ids = _element_jacobian(problem, np.asarray(theta))
+        f_e = np.asarray(test.frequencies_hz)
+        return cls(r, J_k, J_m, k_ids, m_ids, _baseline_columns(problem, theta, n_b), _row_modes(problem),
+                   f_e, float(np.exp(np.mean(np.log(f_e)))))
+
+    def column(self, J: np.ndarray, ids: np.ndarray, eids) -> np.ndarray:
+        """One column: the elements ``eids`` scaled together."""
+        return J[:, np.isin(ids, np.asarray(list(eids), np.int64))].sum(axis=1, keepdims=True)
+
+
+def _group_candidates(model: Model, aug: Model, params, screen: _Screen) -> list[Candidate]:
+    """Stiffness, mass and frequency law of every property group, stiffness and mass of
+    both halves of each structural group; screened by their joint residual reduction."""
+    taken = {(p.kind, tuple(sorted(_param_eids(model, p).tolist()))) for p in params}
+    structural = _structural_pids(model)
+    out = []
+    for pid in _stiffness_pids(model):
+        groups = [(model.element_ids(pids=[pid]), f"pid {pid}", ())]
+        if pid in structural:
+            groups += [(ids, label, tuple(int(e) for e in ids)) for ids, label in _halves(model, pid)]
+        for ids, label, eids in groups:
+            for kind in ("stiffness", "mass", "frequency_dependent_stiffness"):
+                if (kind == "mass" and pid not in structural) or (kind == "frequency_dependent_stiffness" and eids):
+                    continue
+                if (kind, tuple(sorted(ids.tolist()))) in taken:
+                    continue  # already a baseline parameter
+                eff = Effect(kind, pids=(pid,), eids=eids, label=label)
+                if kind == "stiffness":
+                    c = Candidate(eff, "mask", extension(aug, k_log=ids), {})
+                    cols = screen.column(screen.J_k, screen.k_ids, ids)
+                elif kind == "mass":
+                    c = Candidate(eff, "mask", extension(aug, m_log=ids), {})
+                    cols = screen.column(screen.J_m, screen.m_ids, ids)
+                else:
+                    c = Candidate(eff, "visco", extension(aug, k_log=ids, f_ref=screen.f_ref),
+                                  {"f_ref_hz": screen.f_ref}, theta0=np.zeros(2))
+                    g = screen.column(screen.J_k, screen.k_ids, ids)
+                    cols = np.concatenate([g, g * np.log(screen.f_e[screen.row_mode] / screen.f_ref)[:, None]], axis=1)
+                c.screen = float(reduction(screen.r, cols, screen.J_b, joint=True))
+                out.append(c)
+    return out
+
+
+def _node_candidates_at(aug: Model, nodes, screen: _Screen, mass_ids, spring_ids, m_ref, k_ref) -> list[Candidate]:
+    """Added mass and ground spring at each localised grid (dormant elements of ``aug``)."""
+    out = []
+    for node in nodes:
+        for kind, ids, J, ref, ident in (
+                ("added_mass", [mass_ids[node]], screen.J_m, {"m": m_ref}, screen.m_ids),
+                ("boundary_spring", spring_ids[node], screen.J_k, {"k": k_ref}, screen.k_ids)):
+            ext = extension(aug, m_add=ids) if kind == "added_mass" else extension(aug, k_add=ids)
+            c = Candidate(Effect(kind, nodes=(node,)), "mask", ext, ref)
+            c.screen = float(reduction(screen.r, screen.column(J, ident, ids), screen.J_b)[0])
+            out.append(c)
+    return out
+
+
+def _structural_effects(model: Model, node_score: dict, options: DiagnoseOptions) -> list[Effect]:
+    """Joints and flexible supports, the ``max_structural`` nearest the localised error."""
+    out = []
+    if "joint" in options.kinds:
+        out += _joints(model)
+    if "boundary_spring" in options.kinds:
+        out += [Effect("boundary_spring", nodes=(int(n),), label=f"support at grid {int(n)}")
+                for n in model.node_ids if constrained_components(model, int(n)) and elements_at(model, int(n))]
+    out.sort(key=lambda e: -max(node_score.get(n, 0.0) for n in e.nodes))
+    return out[: options.max_structural]
+
+
+def _shortlist(cands: list[Candidate], options: DiagnoseOptions) -> list[Candidate]:
+    """The best screened candidates overall and per kind, and every structural one."""
+    screened = sorted((c for c in cands if c.family != "structural"), key=lambda c: -c.screen)
+    short = screened[: options.shortlist]
+    for kind in options.kinds:
+        short += [c for c in screened if c.effect.kind == kind][: options.per_kind]
+    return list(dict.fromkeys(short)) + [c for c in cands if c.family == "structural"]
+
+
+def _evidence(short: list[Candidate], base: dict, n_b: int, n_rows: int, sigma2: float, mass: float,
+              options: DiagnoseOptions) -> tuple[list[dict], list[Candidate]]:
+    """Score (% of the cross-validated error removed), ΔAIC and plausibility of every
+    fitted candidate; JSON rows and candidates, best first (warranted ones ahead)."""
+
+    def aic(cost, k):
+        return n_rows * np.log(max(cost, 1e-300) / n_rows) + 2 * k
+
+    base_aic = aic(base["cost"], n_b)
+    effects = []
+    for c in short:
+        res = c.result
+        values = c.values(res["theta"][n_b:])
+        d_aic = aic(res["cost"], n_b + len(c.theta0)) - base_aic
+        score = 100 * (1 - res["cv_cost"] / base["cv_cost"]) if base["cv_cost"] > 0 else 0.0  # NaN: not CV'd
+        notes = _plausibility(c, values, mass) + ([f"fit failed: {res['error']}"] if "error" in res else [])
+        c.effect = eff = replace(c.effect, values=values)
+        effects.append({
+            "kind": eff.kind, "pids": list(eff.pids), "eids": list(eff.eids), "nodes": list(eff.nodes),
+            "where": eff.where(), "parameters": values, "score": float(score), "delta_aic": float(d_aic),
+            "screen": float(c.screen) if np.isfinite(c.screen) else None,
+            "chi2_per_row": float(res["cost"] / sigma2 / n_rows),
+            "heldout_rms_freq_dev_pct_before": _rms(base["heldout_freq_dev"]),
+            "heldout_rms_freq_dev_pct_after": _rms(res["heldout_freq_dev"]),
+            "rms_freq_dev_pct_after": _rms(res["freq_dev"]),
+            "plausible": not notes, "plausibility": notes,
+            "warranted": bool(score >= options.min_score and -d_aic >= options.min_delta_aic and not notes),
+            "cross_validated": bool(np.isfinite(score)),
+        })
+    order = sorted(range(len(effects)), key=lambda i: (
+        -effects[i]["warranted"], -np.nan_to_num(effects[i]["score"], nan=-np.inf), effects[i]["delta_aic"]))
+    for rank, i in enumerate(order, 1):
+        effects[i]["rank"] = rank
+    return [effects[i] for i in order], [short[i] for i in order]
 
 
 def _rms(dev) -> float | None:
@@ -593,8 +639,7 @@ def _baseline_columns(problem: Problem, theta, n_b: int) -> np.ndarray:
     return np.asarray(J)[:, :n_b]
 
 
-@eqx.filter_jit
-def _element_jacobian_jit(theta, problem: Problem):
+def _element_jacobian_fn(theta, problem: Problem):
     model0 = problem.model(theta)
 
     def fn(uk, um):
@@ -624,7 +669,7 @@ def _identity(problem: Problem) -> Parameterisation:
 def _element_jacobian(problem: Problem, theta):
     """Weighted residual r at θ and its derivative w.r.t. each element's stiffness and mass
     scale (a dormant element: w.r.t. waking it at its reference value)."""
-    r, jk, jm = _element_jacobian_jit(jnp.asarray(theta), problem)
+    r, jk, jm = Compiled(_element_jacobian_fn)(jnp.asarray(theta), problem)
     s = problem.structure.value
     k_ids = np.concatenate([getattr(s, n).ids for n in ("beams", "rods", "springs", "bushes")])
     m_ids = np.concatenate([getattr(s, n).ids for n in ("beams", "rods", "masses")])
@@ -660,18 +705,6 @@ class Confirmation:
     after: UpdateResult
     passive: np.ndarray  # bool per test mode
     report: dict
-
-
-def _dev(pairing, n: int) -> np.ndarray:
-    dev = np.full(n, np.nan)
-    dev[np.asarray(pairing.test, np.int64)] = 100 * np.asarray(pairing.freq_dev)
-    return dev
-
-
-def _mac(pairing, n: int) -> np.ndarray:
-    out = np.full(n, np.nan)
-    out[np.asarray(pairing.test, np.int64)] = np.asarray(pairing.mac)
-    return out
 
 
 def add_effect(model: Model, test: ModalData, effect: Effect, parameters: ParameterSet | None = None, *,
@@ -713,8 +746,7 @@ def add_effect(model: Model, test: ModalData, effect: Effect, parameters: Parame
         values = {k: float(v * (1 + alpha[0])) for k, v in values.items()}
     final = replace(start, values=values)
     is_passive = np.isin(np.arange(1, ne + 1), passive)
-    d0, d1 = _dev(before, ne), _dev(after.after, ne)
-    m0, m1 = _mac(before, ne), _mac(after.after, ne)
+    (d0, m0), (d1, m1) = before.per_test(), after.after.per_test()
     f_e = np.asarray(test.frequencies_hz)
 
     def rms(d, sel):
@@ -727,12 +759,12 @@ def add_effect(model: Model, test: ModalData, effect: Effect, parameters: Parame
         "converged": bool(after.converged), "iterations": int(after.iterations), "seconds": float(after.seconds),
         "passive_modes": list(passive),
         "paired_modes": [{"test": j + 1, "role": "passive" if is_passive[j] else "active", "f_test_hz": float(f_e[j]),
-                          "freq_dev_pct_before": _num(d0[j]), "freq_dev_pct_after": _num(d1[j]),
-                          "mac_before": _num(m0[j]), "mac_after": _num(m1[j])} for j in range(ne)],
+                          "freq_dev_pct_before": json_number(d0[j]), "freq_dev_pct_after": json_number(d1[j]),
+                          "mac_before": json_number(m0[j]), "mac_after": json_number(m1[j])} for j in range(ne)],
         "rms_freq_dev_pct_active_before": rms(d0, ~is_passive), "rms_freq_dev_pct_active_after": rms(d1, ~is_passive),
         "rms_freq_dev_pct_passive_before": rms(d0, is_passive), "rms_freq_dev_pct_passive_after": rms(d1, is_passive),
-        "mean_mac_passive_before": _num(np.nanmean(m0[is_passive])) if is_passive.any() else None,
-        "mean_mac_passive_after": _num(np.nanmean(m1[is_passive])) if is_passive.any() else None,
+        "mean_mac_passive_before": json_number(np.nanmean(m0[is_passive])) if is_passive.any() else None,
+        "mean_mac_passive_after": json_number(np.nanmean(m1[is_passive])) if is_passive.any() else None,
         "history": [{"iteration": h.iteration, "cost": float(h.cost),
                      "rms_freq_dev_pct_active": rms(100 * h.freq_dev, ~is_passive),
                      "rms_freq_dev_pct_passive": rms(100 * h.freq_dev, is_passive)} for h in after.history],
@@ -750,7 +782,7 @@ def start_values(model: Model, test: ModalData, effect: Effect, opts: Options | 
         extended = start.apply(model)
         ext = extension(extended, k_log=start.elements(model), f_ref=start.values["f_ref_hz"])
         problem = build_problem(extended, test, ParameterSet((), replace(opts, passive_modes=())))
-        t = _scan_start(problem, ext, np.zeros(0), _SCAN_LAW)
+        t = _scan_start(_Fits(), problem, ext, np.zeros(0), _SCAN_LAW)
         return replace(start, values=dict(start.values, alpha=float(np.expm1(t[0])), a=float(np.expm1(t[1]))))
     if start.kind not in ("joint", "boundary_spring", "added_mass"):
         return start
@@ -758,10 +790,5 @@ def start_values(model: Model, test: ModalData, effect: Effect, opts: Options | 
     new = sorted(set(extended.element_ids().tolist()) - set(model.element_ids().tolist()))
     ext = extension(extended, m_log=new) if start.kind == "added_mass" else extension(extended, k_log=new)
     problem = build_problem(extended, test, ParameterSet((), replace(opts, passive_modes=())))
-    t = float(_scan_start(problem, ext, np.zeros(0))[0])
+    t = float(_scan_start(_Fits(), problem, ext, np.zeros(0))[0])
     return replace(start, values={k: v * float(np.exp(t)) for k, v in start.values.items()})
-
-
-def _num(x) -> float | None:
-    x = float(x)
-    return x if np.isfinite(x) else None

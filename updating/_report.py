@@ -14,6 +14,28 @@ import math
 import sys
 from pathlib import Path
 
+import numpy as np
+
+
+def json_number(x) -> float | None:
+    """A JSON number: NaN and ±inf become None (null)."""
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def json_safe(x):
+    """NaN/inf → None, NumPy scalars → Python, recursively through dicts, lists and tuples."""
+    if isinstance(x, dict):
+        return {k: json_safe(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [json_safe(v) for v in x]
+    if isinstance(x, np.integer | np.bool_):
+        return x.item()
+    if isinstance(x, float | np.floating):
+        return json_number(x)
+    return x
+
+
 _CSS = """body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}
 h1{margin-bottom:.2em}h2{border-bottom:2px solid #ccc;padding-bottom:.2em;margin-top:1.6em}
 .meta{color:#666}.verdict{background:#fff6d5;border-left:6px solid #e0a800;padding:.8em 1em;margin:1em 0}

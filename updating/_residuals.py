@@ -22,6 +22,7 @@ import jaxfem
 from jaxfem import Model
 from jaxfem._model import Opaque
 
+from ._compiled import Compiled
 from ._correlation import mac, pair_modes_masked
 from ._parameters import Parameterisation
 
@@ -108,7 +109,6 @@ def residuals(theta: Float[Array, " p"], problem: Problem):
     return out, ev
 
 
-@eqx.filter_jit
 def auto_eigenvalue_weights(theta: Float[Array, " p"], problem: Problem) -> Float[Array, " ne"]:
     """Eigenfrequency weighting of §5.2.4: per mode, the eigenvalue row is scaled so that
     its gradient norm equals that of the mode's eigenvector rows (at θ), never below 1:
@@ -116,7 +116,7 @@ def auto_eigenvalue_weights(theta: Float[Array, " p"], problem: Problem) -> Floa
     weigh no less than the shapes), also where the shapes do not depend on θ."""
     unit = dataclasses.replace(problem, lam_weight=jnp.ones_like(problem.lam_weight),
                                use_lam=True, use_phi=True)
-    jac = jax.jacfwd(lambda t: residuals(t, unit)[0])(theta)
+    jac = Compiled(jax.jacfwd(lambda t, p: residuals(t, p)[0]))(theta, unit)
     g_lam = jnp.linalg.norm(jac["eigenvalue"], axis=-1)
     g_phi = jnp.linalg.norm(jac["eigenvector"], axis=(0, 2))
     return jnp.maximum(1.0, jnp.where(g_lam > 0, g_phi / jnp.where(g_lam > 0, g_lam, 1.0), 1.0))

@@ -17,7 +17,6 @@ import dataclasses
 from collections.abc import Sequence
 from typing import NamedTuple
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -27,6 +26,7 @@ import jaxfem
 from identification import ModalData, Sensors, observation_matrix
 from jaxfem import Model
 
+from ._compiled import Compiled
 from ._parameters import Parameter, ParameterSet, parameterise
 from ._residuals import Problem, evaluate, residuals
 from ._solve import UpdateResult, build_problem, update
@@ -38,14 +38,10 @@ def _paired_modes(theta: Float[Array, " p"], problem: Problem):
     return (ev.lam_a, ev.phi_a), ev
 
 
-_residual_jacobian = eqx.filter_jit(jax.jacfwd(residuals, has_aux=True))
-_paired_jacobian = eqx.filter_jit(jax.jacfwd(_paired_modes, has_aux=True))
-
-
 def _jacobian(problem: Problem, theta: Float[Array, " p"]):
     """∂ε/∂θ per residual leaf as (rows, p), weights included, regularisation left out;
     and the :class:`Evaluation` at θ."""
-    jac, ev = _residual_jacobian(theta, problem)
+    jac, ev = Compiled(jax.jacfwd(residuals, has_aux=True))(theta, problem)
     return {k: np.asarray(v).reshape(-1, theta.shape[0]) for k, v in jac.items() if k != "regularisation"}, ev
 
 
@@ -129,7 +125,7 @@ def sensitivities(
     unweighted = dataclasses.replace(pset, options=dataclasses.replace(pset.options, eigenvalue_weight=1.0))
     problem = build_problem(model, test, unweighted)
     names = [p.name for p in problem.parameterisation.parameters]
-    (jl, jp), ev = _paired_jacobian(jnp.zeros(len(names)), problem)
+    (jl, jp), ev = Compiled(jax.jacfwd(_paired_modes, has_aux=True))(jnp.zeros(len(names)), problem)
     keep = np.asarray(ev.paired & problem.active)
     if not keep.any():
         raise ValueError("no active test mode is paired with a model mode")

@@ -25,8 +25,9 @@ from identification import ModalData, observation_matrix
 from jaxfem import Model
 from jaxfem._model import Opaque
 
+from ._compiled import Compiled
 from ._correlation import pair_modes
-from ._parameters import ParameterSet, Parameterisation, parameterise
+from ._parameters import Parameterisation, ParameterSet, parameterise
 from ._residuals import Problem, auto_eigenvalue_weights, residuals
 
 
@@ -133,13 +134,13 @@ def update(model: Model, test: ModalData, parameters: ParameterSet, *,
     n_p = len(problem.parameterisation.parameters)
     solver_cls = optx.LevenbergMarquardt if opts.solver == "levenberg-marquardt" else optx.GaussNewton
     solver = solver_cls(rtol=1e-12, atol=1e-12)
-    fn = lambda theta, prob: residuals(theta, prob)  # noqa: E731
+    fn = lambda theta, prob: residuals(theta, prob)
     theta = jnp.zeros(n_p)
     out_struct, aux_struct = jax.eval_shape(fn, theta, problem)
     options = {"jac": "fwd"}
-    state = eqx.filter_jit(solver.init)(fn, theta, problem, options, out_struct, aux_struct, frozenset())
-    step = eqx.filter_jit(lambda t, s, p: solver.step(fn, t, p, options, s, frozenset()))
-    summary = eqx.filter_jit(fn)
+    state = Compiled(solver.init)(fn, theta, problem, options, out_struct, aux_struct, frozenset())
+    step = Compiled(lambda t, s, p: solver.step(fn, t, p, options, s, frozenset()))
+    summary = Compiled(fn)
 
     evaluations = []
 

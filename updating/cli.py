@@ -11,6 +11,8 @@ from typing import Annotated, NoReturn
 import numpy as np
 import typer
 
+from ._report import json_number, json_safe
+
 app = typer.Typer(add_completion=False, no_args_is_help=True, help=__doc__)
 ModelArg = Annotated[Path, typer.Argument(metavar="MODEL.bdf", exists=True, dir_okay=False,
                                           help="Nastran bulk data (SI units)")]
@@ -188,6 +190,28 @@ def _observation(model, test, path: Path) -> np.ndarray:
         _fail(f"test data {path}: {err}")
 
 
+def _load_inputs(model_path: Path, test_path: Path, params_path: Path | None = None):
+    """Model, real test modes, observation matrix and the parameter set (None without a
+    file), checked against each other; on bad input exit 2 naming the file."""
+    from ._parameters import ParameterSet, parameterise
+
+    params = None
+    if params_path is not None:
+        try:
+            params = ParameterSet.from_toml(params_path)
+        except (ValueError, OSError) as err:
+            _fail(f"bad parameter file: {err}")
+    model = _load_model(model_path)
+    test = _load_test(test_path)
+    C = _observation(model, test, test_path)  # unknown sensor grids: exit 2 naming them
+    if params is not None:
+        try:
+            parameterise(model, params)
+        except ValueError as err:
+            _fail(f"{params_path}: {err}")
+    return model, test, C, params
+
+
 def _n_model_modes(model, n_test: int, requested: int | None) -> int:
     n_free = model.n_dof - len(model.dofs.massless)
     return int(min(n_free, max(2 * n_test + 6, requested or 0)))
@@ -199,36 +223,6 @@ def _model_modes(model, C: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
 
     lam, phi = jaxfem.modes(model, n)
     return np.asarray(jaxfem.frequencies_hz(lam)), C @ np.asarray(phi)
-
-
-def _num(x) -> float | None:
-    """JSON number (NaN/inf → null)."""
-    x = float(x)
-    return x if np.isfinite(x) else None
-
-
-def _pairing_json(p) -> dict:
-    """Paired modes (numbered from 1), unpaired modes, warnings, RMS Δf and mean MAC."""
-    rows = [
-        {"test": t, "model": m, "f_test_hz": ft, "f_model_hz": fm, "freq_dev_pct": d, "mac": c}
-        for t, m, ft, fm, d, c in p.table() if m is not None
-    ]
-    dev = 100.0 * np.asarray(p.freq_dev, dtype=np.float64)
-    return {
-        "paired_modes": rows,
-        "unpaired_test": [int(j) + 1 for j in p.unpaired_test],
-        "unpaired_model": [int(i) + 1 for i in p.unpaired_model],
-        "warnings": list(p.warnings),
-        "rms_freq_dev_pct": _num(np.sqrt(np.mean(dev**2))) if dev.size else None,
-        "mean_mac": _num(np.mean(p.mac)) if dev.size else None,
-    }
-
-
-def _dev_per_test(p) -> np.ndarray:
-    """Δf in % per test mode, NaN where unpaired."""
-    dev = np.full(p.f_test.size, np.nan)
-    dev[np.asarray(p.test, dtype=np.int64)] = 100.0 * np.asarray(p.freq_dev, dtype=np.float64)
-    return dev
 
 
 def _labels(freqs) -> list[str]:
@@ -279,9 +273,7 @@ def correlate(
     from . import _correlation as corr
 
     _check_plots(plots)
-    model = _load_model(model_path)
-    test = _load_test(test_path)
-    C = _observation(model, test, test_path)
+    model, test, C, _ = _load_inputs(model_path, test_path)
     ne = test.n_modes
     n_model = _n_model_modes(model, ne, n)
     f_a, phi_a = _model_modes(model, C, n_model)
@@ -300,7 +292,7 @@ def correlate(
         comac_rows = []
     result = {"model": str(model_path), "test": str(test_path), "n_model_modes": n_model,
               "min_mac": pairing.min_mac, "max_freq_dev": pairing.max_freq_dev,
-              **_pairing_json(pairing),
+              **pairing.summary(),
               "automac": auto.tolist(), "comac": comac_rows}
 
     typer.echo(f"model {model_path}: {model.n_dof} DoFs, {n_model} modes; test {test_path}: "
@@ -324,7 +316,7 @@ def correlate(
         written = [
             plot_mac(np.asarray(corr.mac(phi_a, phi_e)).T, _labels(f_e), _labels(f_a), plots / "mac.png",
                      f"MAC: {test_path.name} vs {model_path.name}"),
-            plot_freq_dev(_dev_per_test(pairing), None, _labels(f_e), plots / "freq_dev.png"),
+            plot_freq_dev(pairing.per_test()[0], None, _labels(f_e), plots / "freq_dev.png"),
         ]
         typer.echo("wrote " + ", ".join(str(w) for w in written))
 
@@ -355,21 +347,10 @@ def update(
     compared by FRAC and mean |Δ| in dB (validation by prediction, thesis §4.2.5.3).
     """
     from . import _correlation as corr
-    from ._parameters import ParameterSet, parameterise
     from ._solve import update as run_update
 
     _check_plots(plots)
-    try:
-        params = ParameterSet.from_toml(params_path)
-    except (ValueError, OSError) as err:
-        _fail(f"bad parameter file: {err}")
-    model = _load_model(model_path)
-    test = _load_test(test_path)
-    _observation(model, test, test_path)  # unknown sensor grids: exit 2 naming them
-    try:
-        parameterise(model, params)
-    except ValueError as err:
-        _fail(f"{params_path}: {err}")
+    model, test, _, params = _load_inputs(model_path, test_path, params_path)
     if add_effect:
         from ._diagnose import start_values
         from ._effects import effect_parameters, parse_effect
@@ -417,13 +398,13 @@ def update(
         "history": [
             {"iteration": int(h.iteration),
              "alpha": {name: float(a) for name, a in zip(names, np.asarray(h.alpha))},
-             "freq_dev_pct": [_num(100.0 * d) for d in np.asarray(h.freq_dev)],
-             "mac": [_num(m) for m in np.asarray(h.mac)],
+             "freq_dev_pct": [json_number(100.0 * d) for d in np.asarray(h.freq_dev)],
+             "mac": [json_number(m) for m in np.asarray(h.mac)],
              "cost": float(h.cost)}
             for h in res.history
         ],
-        "before": _pairing_json(res.before),
-        "after": _pairing_json(res.after),
+        "before": res.before.summary(),
+        "after": res.after.summary(),
         "active_modes": [int(j) + 1 for j in np.flatnonzero(active)],
         "passive_modes": [int(j) + 1 for j in np.flatnonzero(~active)],
     }
@@ -471,7 +452,7 @@ def update(
             f_a, phi_a = res.sensor_modes[key]
             written.append(plot_mac(np.asarray(corr.mac(phi_a, phi_e)).T, _labels(f_e), _labels(f_a),
                                     plots / f"mac_{key}.png", f"MAC {key} updating"))
-        written.append(plot_freq_dev(_dev_per_test(res.before), _dev_per_test(res.after), _labels(f_e),
+        written.append(plot_freq_dev(res.before.per_test()[0], res.after.per_test()[0], _labels(f_e),
                                      plots / "freq_dev.png", active=active))
         written.append(plot_convergence(res.history, names, plots / "convergence.png", active=active))
         typer.echo("wrote " + ", ".join(str(w) for w in written))
@@ -533,7 +514,7 @@ def _diagnosis(model, test, params, *, model_name: str, test_name: str, json_out
     if frf_path is not None and confirmation is not None:
         rep["frf"] = _frf_prediction(frf_path, test, model, confirmation.after.model, report)
     if json_out is not None:
-        _write_json(json_out, _json_safe(rep))
+        _write_json(json_out, json_safe(rep))
     if report is not None:
         from ._plots import (
             plot_convergence,
@@ -573,22 +554,9 @@ def _diagnosis(model, test, params, *, model_name: str, test_name: str, json_out
             figures["convergence"] = plot_convergence(res.history, res.names, report / "convergence.png", active=active)
         if "frf" in rep and (report / "frf.png").exists():
             figures["frf"] = report / "frf.png"
-        path = write_report(_json_safe(rep), figures, report / "report.html")
+        path = write_report(json_safe(rep), figures, report / "report.html")
         typer.echo(f"wrote {path}")
     return rep
-
-
-def _json_safe(x):
-    """NaN/inf → None, NumPy scalars → Python, recursively."""
-    if isinstance(x, dict):
-        return {k: _json_safe(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [_json_safe(v) for v in x]
-    if isinstance(x, np.integer | np.bool_):
-        return x.item()
-    if isinstance(x, float | np.floating):
-        return _num(x)
-    return x
 
 
 @app.command()
@@ -608,24 +576,10 @@ def diagnose(
     rank candidate effects by cross-validated prediction of held-out modes and AIC, add the
     best one and update again."""
     from ._diagnose import DiagnoseOptions
-    from ._parameters import ParameterSet, parameterise
 
     if report is not None:
         _check_plots(report)
-    params = None
-    if params_path is not None:
-        try:
-            params = ParameterSet.from_toml(params_path)
-        except (ValueError, OSError) as err:
-            _fail(f"bad parameter file: {err}")
-    model = _load_model(model_path)
-    test = _load_test(test_path)
-    _observation(model, test, test_path)
-    if params is not None:
-        try:
-            parameterise(model, params)
-        except ValueError as err:
-            _fail(f"{params_path}: {err}")
+    model, test, _, params = _load_inputs(model_path, test_path, params_path)
     if not (noise_freq > 0 and noise_shape > 0):
         _fail("--noise-freq and --noise-shape must be positive (percent)")
     options = DiagnoseOptions(noise_freq=noise_freq / 100, noise_shape=noise_shape / 100)
