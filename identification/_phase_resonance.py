@@ -1,0 +1,696 @@
+"""Phase resonance testing: mode indicator, simulated sine excitation, force appropriation.
+
+Thesis §2.1.2 and §3.4. A damped structure ``Mü + Du̇ + Ku = f̂ e^{iωt}`` (eq. 3.47)
+answers a sine excitation with ``û = H(ω) f̂``, ``H(ω) = (K − ω²M + iωD)⁻¹`` (eqs.
+3.48–3.49, 5.3–5.4). It vibrates in a pure normal mode when the real part of û vanishes
+(eqs. 3.50–3.53); the Mode Indicator Function (MIF, eq. 3.54) measures how close it is.
+Force appropriation picks the force components at a few exciters that come closest:
+
+- ``"thesis"``: the method of §3.4.2 — superpose single-point responses at all measured
+  DoFs, minimise the real-part response relative to the total (eqs. 3.55–3.61);
+- ``"lewis_wrisley"``: force ∝ mass × deflection at the exciters (Lewis & Wrisley 1950);
+- ``"asher"``: null vector of the real part of the admittance matrix at the exciters, at a
+  frequency where its determinant vanishes (Asher 1958);
+- ``"hunt"``: eigenproblem (3.58) on the exciter responses, weighted by the reduced mass
+  matrix (Hunt, Vold, Peterson & Williams 1984).
+
+Everything here is NumPy/SciPy in float64/complex128 (no JAX tracing): the methods are
+test-planning tools, not differentiated. DoF indices are 0-based; mode numbers 1-based
+as in the thesis tables; frequencies in Hz at the user boundary, rad/s inside.
+
+References: Lewis, R.C., Wrisley, D.L. (1950), "A system for the excitation of pure
+natural modes of complex structures", J. Aeronaut. Sci. 17(11), 705–722. Asher, G.W.
+(1958), "A method of normal mode excitation utilizing admittance measurements", Proc.
+National Specialists' Meeting on Dynamics and Aeroelasticity, IAS, 69–76. Hunt, D.L.,
+Vold, H., Peterson, E.L., Williams, R. (1984), "Optimal selection of excitation methods
+for enhanced modal testing", AIAA paper 84-1068.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import operator
+from collections.abc import Mapping, Sequence
+
+import equinox as eqx
+import numpy as np
+import scipy.linalg as sl
+from jaxtyping import Complex, Float, Int
+from scipy.optimize import brentq
+
+METHODS = ("thesis", "lewis_wrisley", "asher", "hunt")
+REDUCED_MASS = ("diagonal", "guyan")
+_SINGULAR_TOL = 1e-12  # relative smallest eigenvalue below which a Gram matrix is singular
+_ASHER_GRID = 81  # frequency samples per mode in the search for det Re(H_ee) = 0
+
+
+# --------------------------------------------------------------------------- validation
+
+
+def _real_array(name: str, x, ndim: int | None = None) -> np.ndarray:
+    arr = np.asarray(x)
+    if np.iscomplexobj(arr):
+        raise ValueError(f"{name} must be real, got a complex array")
+    if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
+        raise ValueError(f"{name} must be numeric, got dtype {arr.dtype}")
+    arr = arr.astype(np.float64)
+    if ndim is not None and arr.ndim != ndim:
+        raise ValueError(f"{name} must have {ndim} dimension(s), got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} has non-finite entries")
+    return arr
+
+
+def _complex_array(name: str, x, ndim: int) -> np.ndarray:
+    arr = np.asarray(x)
+    if not (np.issubdtype(arr.dtype, np.number)):
+        raise ValueError(f"{name} must be numeric, got dtype {arr.dtype}")
+    arr = arr.astype(np.complex128)
+    if arr.ndim != ndim:
+        raise ValueError(f"{name} must have {ndim} dimension(s), got shape {arr.shape}")
+    if arr.size == 0:
+        raise ValueError(f"{name} is empty (shape {arr.shape})")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} has non-finite entries")
+    return arr
+
+
+def _square(name: str, a, n: int | None = None) -> np.ndarray:
+    a = _real_array(name, a, 2)
+    if a.shape[0] != a.shape[1] or a.shape[0] == 0:
+        raise ValueError(f"{name} must be a non-empty square matrix, got shape {a.shape}")
+    if n is not None and a.shape[0] != n:
+        raise ValueError(f"{name} has shape {a.shape} but K is {n}×{n}")
+    return a
+
+
+def _indices(name: str, idx, n: int, *, allow_empty: bool = False) -> np.ndarray:
+    arr = np.asarray(idx)
+    if arr.ndim != 1 or (arr.shape[0] == 0 and not allow_empty):
+        raise ValueError(f"{name} must be a non-empty 1-D sequence of DoF indices, got shape {arr.shape}")
+    if arr.size and not np.issubdtype(arr.dtype, np.integer):
+        raise ValueError(f"{name} must hold integer DoF indices (0-based), got dtype {arr.dtype}")
+    arr = arr.astype(np.int64)
+    bad = arr[(arr < 0) | (arr >= n)]
+    if bad.size:
+        raise ValueError(f"{name}: DoF index {bad[0]} is out of range 0..{n - 1}")
+    if len(np.unique(arr)) != len(arr):
+        raise ValueError(f"{name} lists a DoF twice: {arr.tolist()}")
+    return arr
+
+
+def _count(name: str, x) -> int:
+    """``x`` as a Python int (bool and floats refused)."""
+    try:
+        value = operator.index(x)
+    except TypeError:
+        value = None
+    if value is None or x is True or x is False:
+        raise ValueError(f"{name} must be an integer, got {x!r}")
+    return value
+
+
+def _system(K, M, damping):
+    K = _square("K", K)
+    n = K.shape[0]
+    M = _square("M", M, n)
+    D = damping_matrix(K, M, damping)
+    for name, a in (("K", K), ("M", M), ("D", D)):
+        if not np.allclose(a, a.T, rtol=1e-10, atol=0.0):
+            raise ValueError(f"{name} must be symmetric")
+    return K, M, D
+
+
+def damping_matrix(K, M, damping) -> Float[np.ndarray, "n n"]:
+    """Viscous damping matrix D (N·s/m) from a damping specification.
+
+    **Arguments:** ``K`` (N/m), ``M`` (kg) as n×n arrays; ``damping`` one of
+
+    - an n×n array: D itself;
+    - a number κ (s): stiffness-proportional ``D = κK`` (thesis §5.4.1 uses κ = 10⁻³ s);
+    - a mapping ``{"mu": μ, "kappa": κ}`` (either may be left out): Rayleigh
+      ``D = μM + κK``, thesis eq. (1.29).
+
+    **Returns:** D, float64 n×n.
+    """
+    K = _square("K", K)
+    M = _square("M", M, K.shape[0])
+    if isinstance(damping, Mapping):
+        unknown = set(damping) - {"mu", "kappa"}
+        if unknown:
+            raise ValueError(f"damping mapping takes keys 'mu' and 'kappa', got {sorted(unknown)}")
+        mu = _real_array("damping['mu']", damping.get("mu", 0.0), 0)
+        kappa = _real_array("damping['kappa']", damping.get("kappa", 0.0), 0)
+        return float(mu) * M + float(kappa) * K  # eq. (1.29)
+    arr = np.asarray(damping)
+    if arr.ndim == 0:
+        return float(_real_array("damping", arr, 0)) * K
+    return _square("damping matrix D", arr, K.shape[0])
+
+
+# --------------------------------------------------------------------------- MIF, responses
+
+
+def mode_indicator(
+    u: Complex[np.ndarray, "*batch n"], weights: Float[np.ndarray, " n"] | None = None
+) -> Float[np.ndarray, "*batch"]:
+    """Mode Indicator Function ×1000, thesis eq. (3.54) with footnote 3.
+
+    ``MIF = 1000 · (1 − Σ_m w_m |Re û_m| |û_m| / Σ_m w_m |û_m|²)``: 1000 for a pure
+    normal-mode (quadrature) response, 0 for a response entirely in phase with the force.
+    The thesis' eq. (3.54) is unweighted (``weights=None``); passing the DoF masses gives
+    the mass-weighted form of the indicator's origin, Breitbach (1973) (thesis ref. [15]).
+
+    **Arguments:** ``u`` complex responses at the n measured DoFs (last axis; leading axes
+    are a batch); ``weights`` (n,) non-negative, e.g. the lumped masses.
+
+    **Returns:** MIF in [0, 1000], shape of ``u`` without its last axis.
+    """
+    u = np.asarray(u)
+    if u.ndim == 0 or u.shape[-1] == 0:
+        raise ValueError(f"u must have the measured DoFs on its last axis, got shape {u.shape}")
+    u = _complex_array("u", u, u.ndim)
+    w = np.ones(u.shape[-1]) if weights is None else _real_array("weights", weights, 1)
+    if w.shape != (u.shape[-1],):
+        raise ValueError(f"weights must have shape ({u.shape[-1]},), got {w.shape}")
+    if np.any(w < 0):
+        raise ValueError("weights must be non-negative")
+    mag = np.abs(u)
+    den = np.sum(w * mag**2, axis=-1)
+    if np.any(den <= 0):
+        raise ValueError("u has no (weighted) response: MIF undefined")
+    return 1000.0 * (1.0 - np.sum(w * np.abs(u.real) * mag, axis=-1) / den)  # eq. (3.54)
+
+
+def _receptance(K, M, D, omega: float, cols: np.ndarray) -> np.ndarray:
+    """Columns ``cols`` of H(ω) = (K − ω²M + iωD)⁻¹ (eq. 5.3), complex n×len(cols)."""
+    n = K.shape[0]
+    Z = (K - omega**2 * M) + 1j * omega * D
+    rhs = np.zeros((n, len(cols)), dtype=np.complex128)
+    rhs[cols, np.arange(len(cols))] = 1.0
+    return np.linalg.solve(Z, rhs)
+
+
+def sine_response(
+    K: Float[np.ndarray, "n n"],
+    M: Float[np.ndarray, "n n"],
+    damping,
+    frequencies_hz: Float[np.ndarray, " f"],
+    force: Float[np.ndarray, " n"] | Float[np.ndarray, "n c"],
+) -> Complex[np.ndarray, "f n"] | Complex[np.ndarray, "f n c"]:
+    """Steady-state response to sine excitation over a sweep, thesis eqs. (3.47)–(3.49), (5.4).
+
+    ``û(ω) = (K − ω²M + iωD)⁻¹ f̂`` with all force components in phase (eq. 3.48).
+
+    **Arguments:** ``K`` (N/m), ``M`` (kg); ``damping`` as :func:`damping_matrix`;
+    ``frequencies_hz`` (f,) ≥ 0; ``force`` (n,) one force vector, or (n, c) one per
+    column (e.g. the identity columns of single-point runs), in N.
+
+    **Returns:** complex128 responses (m), shape (f, n) or (f, n, c). Singular (LinAlgError)
+    only at an undamped resonance of an undamped model.
+    """
+    K, M, D = _system(K, M, damping)
+    n = K.shape[0]
+    f_hz = _real_array("frequencies_hz", frequencies_hz, 1)
+    if f_hz.size == 0 or np.any(f_hz < 0):
+        raise ValueError("frequencies_hz must be a non-empty 1-D array of non-negative values")
+    F = _real_array("force", force)
+    if F.ndim not in (1, 2) or F.shape[0] != n:
+        raise ValueError(f"force must have shape ({n},) or ({n}, c), got {F.shape}")
+    omega = 2.0 * np.pi * f_hz
+    Z = (K[None] - omega[:, None, None] ** 2 * M[None]) + 1j * omega[:, None, None] * D[None]
+    rhs = np.broadcast_to(F.reshape(n, -1).astype(np.complex128), (len(omega), n, F.reshape(n, -1).shape[1]))
+    X = np.linalg.solve(Z, rhs)
+    return X[..., 0] if F.ndim == 1 else X
+
+
+# --------------------------------------------------------------------------- force kernels
+
+
+def _normalise(f: np.ndarray) -> np.ndarray:
+    """Unit Euclidean norm, largest-magnitude component positive (a force direction)."""
+    f = f / np.linalg.norm(f)
+    return f if f[np.argmax(np.abs(f))] > 0 else -f
+
+
+def _gram_eig(R: np.ndarray, T: np.ndarray) -> tuple[float, np.ndarray] | None:
+    """Smallest eigenpair of ``(R − λT)φ = 0`` (eq. 3.58); None where T is singular."""
+    T = 0.5 * (T + T.T)
+    tmax = float(np.max(np.linalg.eigvalsh(T)))
+    if tmax <= 0 or float(np.min(np.linalg.eigvalsh(T))) <= _SINGULAR_TOL * tmax:
+        return None
+    lam, vec = sl.eigh(0.5 * (R + R.T), T)
+    return float(lam[0]), vec[:, 0]
+
+
+def force_thesis(
+    U: Complex[np.ndarray, "n c"], forces: Float[np.ndarray, "e c"] | None = None
+) -> Float[np.ndarray, " e"] | None:
+    """Optimised force vector of thesis §3.4.2, eqs. (3.55)–(3.59).
+
+    The C runs (columns of ``U``: complex responses at all n measured DoFs, at one
+    resonance frequency) are superposed with weights φ minimising
+    ``φᵀ Re(U)ᵀRe(U) φ / φᵀ (Re(U)ᵀRe(U) + Im(U)ᵀIm(U)) φ`` (eq. 3.57): the eigenvector
+    of the smallest eigenvalue of eq. (3.58). The force is ``[f̂¹ … f̂ᶜ] φ`` (eq. 3.59);
+    the predicted response ``U φ`` (eqs. 3.60–3.61) gives the predicted MIF.
+
+    **Arguments:** ``U`` (n, C); ``forces`` (e, C) force vector of each run at the e
+    exciters, or None for unit single-point runs (then e = C and the force is φ).
+
+    **Returns:** the force vector (unit norm, largest component positive), or None where
+    the runs are linearly dependent over the measured DoFs (e.g. C > 2n).
+    """
+    U = _complex_array("U", U, 2)
+    F = np.eye(U.shape[1]) if forces is None else _real_array("forces", forces, 2)
+    if F.shape[1] != U.shape[1]:
+        raise ValueError(f"forces has {F.shape[1]} runs (columns) but U has {U.shape[1]}")
+    R = U.real.T @ U.real
+    pair = _gram_eig(R, R + U.imag.T @ U.imag)  # eqs. (3.57)–(3.58)
+    if pair is None:
+        return None
+    f = F @ pair[1]  # eq. (3.59)
+    return _normalise(f) if np.linalg.norm(f) > 0 else None
+
+
+def _mass_factor(name: str, masses, c: int) -> np.ndarray:
+    """L with L Lᵀ = reduced mass matrix M_e (given as (c,) diagonal or (c, c))."""
+    m = _real_array(name, masses)
+    if m.shape == (c,):
+        if np.any(m <= 0):
+            raise ValueError(f"{name} must be positive")
+        return np.diag(np.sqrt(m))
+    if m.shape != (c, c):
+        raise ValueError(f"{name} must have shape ({c},) or ({c}, {c}), got {m.shape}")
+    try:
+        return np.linalg.cholesky(0.5 * (m + m.T))
+    except np.linalg.LinAlgError:
+        raise ValueError(f"{name} must be symmetric positive definite") from None
+
+
+def force_lewis_wrisley(
+    H_ee: Complex[np.ndarray, "c c"], masses: Float[np.ndarray, " c"] | Float[np.ndarray, "c c"]
+) -> Float[np.ndarray, " c"]:
+    """Force ∝ mass × deflection at the exciters, Lewis & Wrisley (1950); thesis §3.4, §5.4.1.
+
+    Under damping proportional to mass the appropriated force ``ωDφ`` (eq. 3.52) is
+    proportional to ``Mφ``; with the mass model reduced to the exciter points, M_e, the
+    tuning sets ``f ← M_e Im(û_e)`` and repeats with the measured quadrature deflection
+    at the exciters. Its fixed point is the eigenvector of ``M_e Im(H_ee)`` with the
+    largest |eigenvalue| (found from the symmetric form ``Lᵀ Im(H_ee) L``, M_e = LLᵀ).
+
+    **Arguments:** ``H_ee`` (C, C) admittance (m/N) between the exciters at the mode's
+    frequency; ``masses`` (C,) lumped masses or (C, C) reduced mass matrix (kg).
+
+    **Returns:** the force vector (unit norm, largest component positive).
+    """
+    H = _complex_array("H_ee", H_ee, 2)
+    if H.shape[0] != H.shape[1]:
+        raise ValueError(f"H_ee must be square (exciters × exciters), got shape {H.shape}")
+    L = _mass_factor("masses", masses, H.shape[0])
+    S = L.T @ (0.5 * (H.imag + H.imag.T)) @ L
+    mu, v = np.linalg.eigh(S)
+    return _normalise(L @ v[:, np.argmax(np.abs(mu))])
+
+
+def force_hunt(
+    H_ee: Complex[np.ndarray, "c c"], masses: Float[np.ndarray, " c"] | Float[np.ndarray, "c c"]
+) -> Float[np.ndarray, " c"] | None:
+    """Force from the real/total response eigenproblem at the exciters, Hunt et al. (1984).
+
+    As thesis eqs. (3.57)–(3.58) but, as the thesis describes Hunt's method (§5.4.1), with
+    the responses at the exciter locations only and weighted by the reduced mass matrix:
+    ``(Re Hᵀ M_e Re H) φ = λ (Re Hᵀ M_e Re H + Im Hᵀ M_e Im H) φ``, smallest λ.
+
+    **Arguments:** ``H_ee`` (C, C) admittance between the exciters (m/N); ``masses``
+    (C,) lumped masses or (C, C) reduced mass matrix (kg).
+
+    **Returns:** the force vector (unit norm, largest component positive), or None when
+    H_ee is singular.
+    """
+    H = _complex_array("H_ee", H_ee, 2)
+    if H.shape[0] != H.shape[1]:
+        raise ValueError(f"H_ee must be square (exciters × exciters), got shape {H.shape}")
+    L = _mass_factor("masses", masses, H.shape[0])
+    Re, Im = L.T @ H.real, L.T @ H.imag  # ‖L^T x‖² = xᵀ M_e x
+    R = Re.T @ Re
+    pair = _gram_eig(R, R + Im.T @ Im)
+    return None if pair is None else _normalise(pair[1])
+
+
+def force_asher(H_ee: Complex[np.ndarray, "c c"]) -> tuple[Float[np.ndarray, " c"], float]:
+    """Null vector of the real admittance at the exciters, Asher (1958); thesis §3.4, §5.4.1.
+
+    A normal mode needs ``Re(û_e) = Re(H_ee) f = 0``, non-trivial only where
+    ``det Re(H_ee(ω)) = 0`` (Asher's indicator |H| = 0). At such a frequency the force
+    is the eigenvector of Re(H_ee) with the smallest |eigenvalue|; :func:`appropriate`
+    searches the frequency.
+
+    **Arguments:** ``H_ee`` (C, C) admittance between the exciters (m/N).
+
+    **Returns:** ``(force, ratio)``: the force (unit norm, largest component positive)
+    and |smallest| / |largest| eigenvalue of Re(H_ee), 0 at an exact zero of the
+    determinant.
+    """
+    H = _complex_array("H_ee", H_ee, 2)
+    if H.shape[0] != H.shape[1]:
+        raise ValueError(f"H_ee must be square (exciters × exciters), got shape {H.shape}")
+    mu, v = np.linalg.eigh(0.5 * (H.real + H.real.T))
+    i = int(np.argmin(np.abs(mu)))
+    big = float(np.max(np.abs(mu)))
+    return _normalise(v[:, i]), (float(abs(mu[i]) / big) if big > 0 else 0.0)
+
+
+# --------------------------------------------------------------------------- model level
+
+
+class Appropriation(eqx.Module):
+    """Force appropriated to one mode by one method, and the MIF it is predicted to give.
+
+    **Fields:** ``method``; ``mode`` (1-based); ``exciters`` (0-based DoF indices);
+    ``frequency_hz`` at which the force is applied (NaN where none was found);
+    ``force`` (C,) components at the exciters, unit norm, or None where the method finds
+    no force vector; ``mif`` predicted at the measured DoFs (eq. 3.54 ×1000) or None.
+    """
+
+    method: str
+    mode: int
+    exciters: tuple[int, ...]
+    frequency_hz: float
+    force: Float[np.ndarray, " c"] | None
+    mif: float | None
+
+    @property
+    def found(self) -> bool:
+        return self.force is not None
+
+
+def _modes(K, M, n_modes: int | None):
+    lam, phi = sl.eigh(K, M)  # eq. (3.14), mass-normalised
+    if np.any(lam <= 0):
+        raise ValueError("K must be positive definite (rigid-body modes cannot be appropriated)")
+    m = len(lam) if n_modes is None else _count("n_modes", n_modes)
+    if not 1 <= m <= len(lam):
+        raise ValueError(f"n_modes must be in 1..{len(lam)}, got {n_modes}")
+    return lam[:m], phi[:, :m]
+
+
+def _frequencies(frequencies_hz, lam) -> np.ndarray:
+    if frequencies_hz is None:
+        return np.sqrt(lam)
+    f = _real_array("frequencies_hz", frequencies_hz, 1)
+    if f.shape != lam.shape or np.any(f <= 0) or np.any(np.diff(f) < 0):
+        raise ValueError(
+            f"frequencies_hz must hold {len(lam)} positive, ascending values (one per mode), got {f.tolist()}"
+        )
+    return 2.0 * np.pi * f
+
+
+def _reduced_mass(K, M, exciters: np.ndarray, kind: str) -> np.ndarray:
+    """Mass model reduced to the exciters: diagonal entries, or Guyan condensation."""
+    if kind == "diagonal":
+        return np.diag(M)[exciters]
+    rest = np.setdiff1d(np.arange(K.shape[0]), exciters)
+    T = np.zeros((K.shape[0], len(exciters)))
+    T[exciters, np.arange(len(exciters))] = 1.0
+    if len(rest):
+        try:
+            T[rest] = -np.linalg.solve(K[np.ix_(rest, rest)], K[np.ix_(rest, exciters)])
+        except np.linalg.LinAlgError:
+            raise ValueError("Guyan reduction needs K restricted to the other DoFs to be regular") from None
+    return T.T @ M @ T
+
+
+def _check_method(method: str, reduced_mass: str):
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if reduced_mass not in REDUCED_MASS:
+        raise ValueError(f"reduced_mass must be one of {REDUCED_MASS}, got {reduced_mass!r}")
+
+
+def _asher_window(omega, phi, D, r: int, band: float) -> tuple[float, float]:
+    """Search window around ω_r: ±band × the half-power half-width ζ_rω_r = φ_rᵀDφ_r/2
+    (mass-normalised φ_r), kept between the midpoints to the neighbouring frequencies."""
+    half = band * 0.5 * float(phi[:, r] @ D @ phi[:, r])
+    lo, hi = omega[r] - half, omega[r] + half
+    if r > 0:
+        lo = max(lo, 0.5 * (omega[r - 1] + omega[r]))
+    if r < len(omega) - 1:
+        hi = min(hi, 0.5 * (omega[r] + omega[r + 1]))
+    return max(lo, 1e-3 * omega[r]), hi
+
+
+class _Solver:
+    """Receptance columns of one system, cached per frequency."""
+
+    def __init__(self, K, M, D, cols):
+        self.K, self.M, self.D, self.cols = K, M, D, np.asarray(cols)
+        self._cache: dict[float, np.ndarray] = {}
+
+    def __call__(self, omega: float, cache: bool = True) -> np.ndarray:
+        key = float(omega)
+        if key in self._cache:
+            return self._cache[key]
+        H = _receptance(self.K, self.M, self.D, key, self.cols)
+        if cache:
+            self._cache[key] = H
+        return H
+
+    def clear(self):
+        self._cache.clear()
+
+
+def _asher_root(solver: _Solver, pos: np.ndarray, lo: float, hi: float, target: float) -> float | None:
+    """Zero of det Re(H_ee(ω)) in [lo, hi] closest to ``target`` (None if no sign change)."""
+    block = np.ix_(solver.cols[pos], pos)  # H_ee within the cached columns
+
+    def det(om, cache=False):
+        return float(np.linalg.det(solver(om, cache)[block].real))
+
+    grid = np.linspace(lo, hi, _ASHER_GRID)
+    vals = np.array([det(om, True) for om in grid])
+    flips = np.flatnonzero(np.sign(vals[1:]) * np.sign(vals[:-1]) <= 0)
+    roots = []
+    for i in flips:
+        if vals[i] == 0.0:
+            roots.append(grid[i])
+        elif vals[i + 1] == 0.0:
+            roots.append(grid[i + 1])
+        else:
+            roots.append(brentq(det, grid[i], grid[i + 1], xtol=1e-12 * target, rtol=1e-14))
+    return None if not roots else float(min(roots, key=lambda z: abs(z - target)))
+
+
+def _one(method, solver, sensors, exc_pos, masses, omega, phi, D, r, asher_band):
+    """(frequency in rad/s, force or None, MIF or None) for mode r with exciters cols[exc_pos]."""
+    ex = solver.cols[exc_pos]
+    if method == "asher":
+        lo, hi = _asher_window(omega, phi, D, r, asher_band)
+        root = _asher_root(solver, exc_pos, lo, hi, omega[r])
+        if root is None:
+            return math.nan, None, None
+        om = root
+    else:
+        om = omega[r]
+    Hc = solver(om, method != "asher")[:, exc_pos]  # all DoFs × exciters
+    H_ee = Hc[ex]
+    if method == "thesis":
+        f = force_thesis(Hc[sensors])
+    elif method == "lewis_wrisley":
+        f = force_lewis_wrisley(H_ee, masses)
+    elif method == "hunt":
+        f = force_hunt(H_ee, masses)
+    else:
+        f = force_asher(H_ee)[0]
+    if f is None:
+        return om, None, None
+    return om, f, float(mode_indicator(Hc[sensors] @ f))
+
+
+def _prepare(K, M, damping, exciters_or_candidates, name, method, reduced_mass, n_modes, frequencies_hz, sensors):
+    _check_method(method, reduced_mass)
+    K, M, D = _system(K, M, damping)
+    if not np.any(D):
+        raise ValueError("force appropriation needs a damped model (D = 0: the response is singular at resonance)")
+    n = K.shape[0]
+    cols = _indices(name, exciters_or_candidates, n)
+    sens = np.arange(n) if sensors is None else _indices("sensors", sensors, n)
+    lam, phi = _modes(K, M, n_modes)
+    omega = _frequencies(frequencies_hz, lam)
+    return K, M, D, cols, sens, lam, phi, omega
+
+
+def appropriate(
+    K: Float[np.ndarray, "n n"],
+    M: Float[np.ndarray, "n n"],
+    damping,
+    exciters: Int[np.ndarray, " c"] | Sequence[int],
+    *,
+    method: str = "thesis",
+    n_modes: int | None = None,
+    frequencies_hz: Float[np.ndarray, " m"] | None = None,
+    sensors: Int[np.ndarray, " s"] | Sequence[int] | None = None,
+    reduced_mass: str = "diagonal",
+    asher_band: float = 1.0,
+) -> list[Appropriation]:
+    """Appropriated force and predicted MIF for each of the first modes of a damped model.
+
+    The simulated test of thesis §5.4.1: responses ``H(ω)F`` (eqs. 5.3–5.4) at the
+    resonance frequencies, the force from ``method`` (see the module docstring), the MIF
+    (eq. 3.54) of the resulting response at the ``sensors``.
+
+    **Arguments:**
+    - ``K`` (N/m), ``M`` (kg): symmetric n×n, K positive definite; ``damping`` as
+      :func:`damping_matrix`.
+    - ``exciters``: 0-based DoF indices of the C exciters.
+    - ``method``: ``"thesis"``, ``"lewis_wrisley"``, ``"asher"`` or ``"hunt"``.
+    - ``n_modes``: how many modes (lowest first); all if None.
+    - ``frequencies_hz``: frequency per mode at which to apply the force; default the
+      undamped natural frequencies of (K, M). Asher's method searches its own frequency
+      (the zero of det Re(H_ee) nearest to this one).
+    - ``sensors``: 0-based measured DoFs (MIF and the thesis method); all if None.
+    - ``reduced_mass``: mass model at the exciters for Lewis & Wrisley and Hunt:
+      ``"diagonal"`` (the diagonal entries of M, lumped masses) or ``"guyan"``.
+    - ``asher_band``: Asher's search window, in half-power half-widths ζ_rω_r around each
+      frequency (kept between the neighbouring natural frequencies).
+
+    **Returns:** one :class:`Appropriation` per mode; ``force`` None where the method finds
+    none (Asher: no zero of the determinant in the window; thesis method: dependent runs).
+    """
+    K, M, D, ex, sens, lam, phi, omega = _prepare(
+        K, M, damping, exciters, "exciters", method, reduced_mass, n_modes, frequencies_hz, sensors
+    )
+    if not asher_band > 0:
+        raise ValueError(f"asher_band must be positive, got {asher_band}")
+    masses = _reduced_mass(K, M, ex, reduced_mass)
+    solver = _Solver(K, M, D, ex)
+    out = []
+    for r in range(len(lam)):
+        om, f, mif = _one(method, solver, sens, np.arange(len(ex)), masses, omega, phi, D, r, asher_band)
+        out.append(Appropriation(method, r + 1, tuple(int(e) for e in ex), om / (2.0 * np.pi), f, mif))
+    return out
+
+
+def exciter_search(
+    K: Float[np.ndarray, "n n"],
+    M: Float[np.ndarray, "n n"],
+    damping,
+    candidates: Int[np.ndarray, " C"] | Sequence[int],
+    n_exciters: int,
+    *,
+    method: str = "thesis",
+    n_modes: int | None = None,
+    frequencies_hz: Float[np.ndarray, " m"] | None = None,
+    sensors: Int[np.ndarray, " s"] | Sequence[int] | None = None,
+    reduced_mass: str = "diagonal",
+    asher_band: float = 1.0,
+) -> list[list[Appropriation]]:
+    """All subsets of ``n_exciters`` out of the candidate positions, ranked per mode by
+    predicted MIF (thesis §3.4.2 last paragraph; Table 5.11).
+
+    Arguments as :func:`appropriate`; ``candidates`` are 0-based DoF indices, ``n_exciters``
+    in 1..len(candidates).
+
+    **Returns:** per mode, the list of all ``C(len(candidates), n_exciters)``
+    :class:`Appropriation` s, best MIF first (subsets without a force vector last,
+    in combination order).
+    """
+    K, M, D, cand, sens, lam, phi, omega = _prepare(
+        K, M, damping, candidates, "candidates", method, reduced_mass, n_modes, frequencies_hz, sensors
+    )
+    n_exciters = _count("n_exciters", n_exciters)
+    if not 1 <= n_exciters <= len(cand):
+        raise ValueError(f"n_exciters must be in 1..{len(cand)} (the number of candidates), got {n_exciters}")
+    if not asher_band > 0:
+        raise ValueError(f"asher_band must be positive, got {asher_band}")
+    solver = _Solver(K, M, D, cand)
+    full_mass = _reduced_mass(K, M, cand, "diagonal") if reduced_mass == "diagonal" else None
+    table = []
+    for r in range(len(lam)):
+        solver.clear()  # keep one mode's frequencies only
+        rows = []
+        for subset in itertools.combinations(range(len(cand)), n_exciters):
+            pos = np.asarray(subset)
+            ex = cand[pos]
+            masses = full_mass[pos] if full_mass is not None else _reduced_mass(K, M, ex, reduced_mass)
+            om, f, mif = _one(method, solver, sens, pos, masses, omega, phi, D, r, asher_band)
+            rows.append(Appropriation(method, r + 1, tuple(int(e) for e in ex), om / (2.0 * np.pi), f, mif))
+        rows.sort(key=lambda a: -a.mif if a.mif is not None else math.inf)
+        table.append(rows)
+    return table
+
+
+def appropriation_report(
+    K: Float[np.ndarray, "n n"],
+    M: Float[np.ndarray, "n n"],
+    damping,
+    candidates: Int[np.ndarray, " C"] | Sequence[int],
+    n_exciters: int,
+    n_modes: int | None = None,
+    *,
+    method: str = "thesis",
+    frequencies_hz: Float[np.ndarray, " m"] | None = None,
+    sensors: Int[np.ndarray, " s"] | Sequence[int] | None = None,
+    labels: Sequence[str] | None = None,
+    top: int = 5,
+    reduced_mass: str = "diagonal",
+) -> dict:
+    """JSON-ready exciter-placement report (for ``jaxfem appropriate``; cf. thesis Table 5.11).
+
+    Per mode: the natural frequency, the single-point MIF of each candidate (the sweep
+    runs), and the ``top`` exciter subsets of size ``n_exciters`` ranked by predicted MIF,
+    with their force components (unit norm) and evaluation frequency.
+
+    **Arguments:** as :func:`exciter_search`; ``labels`` one string per DoF of K (default
+    the 1-based DoF numbers, as in the thesis); ``top`` ≥ 1 subsets listed per mode.
+
+    **Returns:** a dict of plain Python values; ``"exciters"`` are 0-based DoF indices,
+    ``force``/``mif`` are None where a subset has no force vector.
+    """
+    if _count("top", top) < 1:
+        raise ValueError(f"top must be a positive integer, got {top!r}")
+    K, M, D = _system(K, M, damping)
+    n = K.shape[0]
+    if labels is None:
+        labels = [str(i + 1) for i in range(n)]
+    elif len(labels) != n:
+        raise ValueError(f"labels must name all {n} DoFs of K, got {len(labels)}")
+    labels = [str(x) for x in labels]
+    ranked = exciter_search(
+        K, M, D, candidates, n_exciters, method=method, n_modes=n_modes, frequencies_hz=frequencies_hz,
+        sensors=sensors, reduced_mass=reduced_mass,
+    )
+    cand = _indices("candidates", candidates, n)
+    sens = np.arange(n) if sensors is None else _indices("sensors", sensors, n)
+    lam, _ = _modes(K, M, n_modes)
+    omega = _frequencies(frequencies_hz, lam)
+
+    def row(a: Appropriation) -> dict:
+        return {
+            "exciters": list(a.exciters),
+            "labels": [labels[e] for e in a.exciters],
+            "frequency_hz": None if math.isnan(a.frequency_hz) else a.frequency_hz,
+            "force": None if a.force is None else [float(x) for x in a.force],
+            "mif": a.mif,
+        }
+
+    modes = []
+    for r, rows in enumerate(ranked):
+        single = mode_indicator(_receptance(K, M, D, omega[r], cand)[sens].T)  # one run per candidate
+        modes.append({
+            "mode": r + 1,
+            "natural_frequency_hz": float(np.sqrt(lam[r]) / (2.0 * np.pi)),
+            "single_point_mif": {labels[c]: float(v) for c, v in zip(cand, single)},
+            "best": row(rows[0]) if rows[0].found else None,
+            "ranking": [row(a) for a in rows[:top]],
+        })
+    return {
+        "method": method,
+        "n_exciters": int(n_exciters),
+        "candidates": [int(c) for c in cand],
+        "candidate_labels": [labels[c] for c in cand],
+        "sensors": [int(s) for s in sens],
+        "n_subsets": math.comb(len(cand), int(n_exciters)),
+        "mif": "1000*(1 - sum|Re u||u| / sum|u|^2) at the sensors, thesis eq. (3.54)",
+        "modes": modes,
+    }
