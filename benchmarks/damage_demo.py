@@ -20,7 +20,6 @@ writes ``damage_map.png`` and ``damage_summary.json`` into DIR.
 from __future__ import annotations
 
 import argparse
-import itertools
 import json
 import time
 from pathlib import Path
@@ -116,14 +115,13 @@ def frequency_lines() -> np.ndarray:
 
 
 def identify(frequencies_hz, h, model_hz) -> tuple[np.ndarray, np.ndarray]:
-    """Frequency (Hz) and damping ratio per mode by an SDOF inverse-FRF fit in windows
-    between the geometric midpoints of the model's frequencies."""
-    from identification._damage import _sdof_inverse_fit
+    """Frequency (Hz) and damping ratio per mode: the SDOF inverse-FRF fit (thesis eqs.
+    3.34–3.37, :func:`identification.sdof_fit`) at each of the model's resonances."""
+    from identification import FRFData, Sensors, sdof_fit
 
-    f = np.asarray(model_hz)
-    edges = np.concatenate([[f[0] / 1.5], np.sqrt(f[1:] * f[:-1]), [f[-1] * 1.2]])
-    fits = [_sdof_inverse_fit(frequencies_hz, h, lo, hi) for lo, hi in itertools.pairwise(edges)]
-    return np.array([a for a, _ in fits]), np.array([b for _, b in fits])
+    tip = Sensors.from_components([N_ELEMENTS + 1], [2])
+    modes = sdof_fit(FRFData(frequencies_hz, np.asarray(h)[:, None, None], tip, tip, "receptance"), model_hz)
+    return np.asarray(modes.frequencies_hz), np.asarray(modes.damping_ratios)
 
 
 def run(seed: int = 0, noise: float = 0.01, true_element: int = TRUE_ELEMENT, out: Path | None = None) -> dict:

@@ -25,8 +25,8 @@ evaluates eq. (3.40) on the damaged model only; the loss-factor term is the
 "additional friction" of §3.3.1, set to zero by ``loss_factor=0``.
 
 Measured ratios come from the user (any modal fit, e.g. one SDOF inverse-FRF fit per
-resonance, eqs. 3.34–3.37; :func:`_sdof_inverse_fit` is a minimal one used by the
-demonstration). Units: frequencies in Hz at the boundary, ω in rad/s inside.
+resonance, eqs. 3.34–3.37, :func:`identification.sdof_fit`, as in the demonstration
+``benchmarks/damage_demo.py``). Units: frequencies in Hz at the boundary, ω in rad/s inside.
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, ArrayLike, Complex, Float, Int
+from jaxtyping import Array, ArrayLike, Float, Int
 
 import jaxfem
 from jaxfem import Model
@@ -477,60 +477,6 @@ def localise_damage(
         mu=mu,
         kappa=kappa,
     )
-
-
-# ------------------------------------------------------- damping from a single FRF
-
-
-def _sdof_inverse_fit(
-    frequencies_hz: Float[np.ndarray, " f"],
-    h: Complex[np.ndarray, " f"],
-    f_low: float,
-    f_high: float,
-) -> tuple[float, float]:
-    """Natural frequency (Hz) and damping ratio of the resonance peaking in ``[f_low, f_high]``.
-
-    Around the peak the inverse response of one degree of freedom is a quadratic in ω,
-    ``1/u = aω² + bω + c`` (eqs. 3.34–3.36). The coefficients are fitted by linear least
-    squares on the lines above half power (one more each side), weighted by ``|H|`` so
-    each line counts by its relative error (``Σ|H_k p(ω_k) − 1|²``). For an exact SDOF
-    the roots of p are ``ω = ω_n(iζ ± √(1 − ζ²))``: ``ω_n = |ω|``, ``ζ = Im ω/|ω|``, which
-    is eq. (3.37) and is also unaffected by a complex modal constant. A minimal
-    estimator for demonstrations and tests; the general fit is
-    ``identification._fitting``.
-    """
-    f = np.asarray(frequencies_hz, dtype=np.float64)
-    h = np.asarray(h, dtype=np.complex128)
-    window = np.flatnonzero((f >= f_low) & (f <= f_high))
-    if len(window) < 3:
-        raise ValueError(f"fewer than 3 frequency lines in [{f_low:.4g}, {f_high:.4g}] Hz")
-    k = window[np.argmax(np.abs(h[window]))]
-    if k in (window[0], window[-1]):
-        raise ValueError(f"no resonance peak inside [{f_low:.4g}, {f_high:.4g}] Hz (maximum at the edge)")
-    half = np.abs(h) >= np.abs(h[k]) / np.sqrt(2.0)
-    lo, hi = k, k
-    while lo > window[0] and half[lo - 1]:
-        lo -= 1
-    while hi < window[-1] and half[hi + 1]:
-        hi += 1
-    lo, hi = max(lo - 1, window[0]), min(hi + 1, window[-1])
-    if hi - lo + 1 < 5:
-        raise ValueError(
-            f"only {hi - lo + 1} lines around the peak at {f[k]:.4g} Hz: frequency resolution too coarse "
-            "for the damping"
-        )
-    w = 2.0 * np.pi * f[lo : hi + 1]
-    w0 = 2.0 * np.pi * f[k]
-    x = w / w0 - 1.0  # centred, scaled variable for conditioning
-    basis = np.stack([x**2, x, np.ones_like(x)], axis=1)
-    hb = h[lo : hi + 1, None] * basis
-    coef, *_ = np.linalg.lstsq(hb, np.ones(len(x), np.complex128), rcond=None)  # eq. (3.35)
-    roots = w0 * (1.0 + np.roots(coef))
-    roots = roots[roots.real > 0]
-    if not len(roots):
-        raise ValueError(f"inverse-FRF fit around {f[k]:.4g} Hz has no root with positive frequency")
-    r = roots[np.argmin(np.abs(roots - w0))]
-    return float(np.abs(r) / (2.0 * np.pi)), float(r.imag / np.abs(r))  # eq. (3.37)
 
 
 # ----------------------------------------------------------------------------- plot

@@ -19,7 +19,6 @@ from benchmarks import damage_demo
 from identification import ModalData, Sensors
 from identification._damage import (
     DamageScan,
-    _sdof_inverse_fit,
     damage_damping,
     damping_correlation,
     damping_deviations,
@@ -221,24 +220,6 @@ def test_modal_data_input_and_candidate_groups(beam, measured):
                           loss_factor=MODEL_ETA, mode_indices=pick, mu=mu, kappa=kappa)
     np.testing.assert_allclose(sub.predicted, full.predicted[:, pick], rtol=1e-10)
     np.testing.assert_array_equal(sub.mode_indices, pick)
-
-
-def test_sdof_inverse_fit():
-    # Exact SDOF, viscous (eq. 3.34) with a complex modal constant: ω_n and ζ recovered.
-    wn, zeta = 2 * np.pi * 100.0, 0.004
-    f = 100.0 * (1 + 2e-4) ** np.arange(-200, 201)
-    w = 2 * np.pi * f
-    h = (0.3 - 0.1j) / (wn**2 - w**2 + 2j * zeta * wn * w)
-    fn, z = _sdof_inverse_fit(f, h, 95.0, 105.0)
-    assert abs(fn - 100.0) < 1e-9 and abs(z - zeta) < 1e-12
-    # Hysteretic SDOF: ζ = η/2 to second order.
-    h = 1.0 / (wn**2 * (1 + 0.01j) - w**2)
-    fn, z = _sdof_inverse_fit(f, h, 95.0, 105.0)
-    assert abs(z - 0.005) < 1e-6
-    with pytest.raises(ValueError, match="no resonance peak"):
-        _sdof_inverse_fit(f, h, 101.0, 105.0)
-    with pytest.raises(ValueError, match="resolution too coarse"):
-        _sdof_inverse_fit(f[::40], h[::40], 95.0, 105.0)
 
 
 def test_plot_on_a_3d_frame(tmp_path):

@@ -13,7 +13,8 @@ import typer
 
 from ._report import json_number, json_safe
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, help=__doc__)
+# plain click errors: a rich error panel cuts long paths short ("File ... does not exist")
+app = typer.Typer(add_completion=False, no_args_is_help=True, help=__doc__, rich_markup_mode=None)
 ModelArg = Annotated[Path, typer.Argument(metavar="MODEL.bdf", exists=True, dir_okay=False,
                                           help="Nastran bulk data (SI units)")]
 TestArg = Annotated[Path, typer.Argument(metavar="TEST.uff", exists=True, dir_okay=False,
