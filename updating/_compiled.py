@@ -38,6 +38,7 @@ class Compiled:
                 out_static.append(st)
                 return dyn_out
 
+            run.__name__ = getattr(self._fn, "__name__", "run")  # names the compilation in JAX's logs
             self._cache[key] = (jax.jit(run), out_static)
         jitted, out_static = self._cache[key]
         dyn_out = jitted(dynamic)
