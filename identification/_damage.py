@@ -513,13 +513,7 @@ def plot_damage_map(
         raise ImportError("plots need matplotlib: install jaxfem[plot] (pip install 'jaxfem[plot]')") from err
 
     xyz = np.asarray(model.xyz, dtype=np.float64)
-    rows, eids = [], []
-    for block in (model.beams, model.rods, model.springs, model.bushes):
-        n = np.asarray(block.nodes).reshape(-1, 2)
-        keep = (n >= 0).all(axis=1)
-        rows.append(n[keep])
-        eids.append(np.asarray(block.ids)[keep])
-    rows, eids = np.concatenate(rows), np.concatenate(eids)
+    rows, eids = model.segments()
     values = scan.element_values()
     c = np.array([values.get(int(e), np.nan) for e in eids])
     used = xyz[np.unique(rows)] if len(rows) else xyz

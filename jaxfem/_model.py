@@ -220,6 +220,17 @@ class Model(eqx.Module):
             raise ValueError(f"grid id(s) {missing} not in the model")
         return np.array([lookup[int(n)] for n in node_ids], dtype=np.int64)
 
+    def segments(self) -> tuple[np.ndarray, np.ndarray]:
+        """Two-grid elements (beams, rods, bushes, springs between two grids) for drawing:
+        ``(rows (k, 2) of grid indices, element ids (k,))``; grounded springs left out."""
+        rows, ids = [], []
+        for block in (self.beams, self.rods, self.bushes, self.springs):
+            n = np.asarray(block.nodes).reshape(-1, 2)
+            keep = (n >= 0).all(axis=1)
+            rows.append(n[keep])
+            ids.append(np.asarray(block.ids)[keep])
+        return np.concatenate(rows).astype(np.int64), np.concatenate(ids).astype(np.int64)
+
     def element_ids(self, pids: Sequence[int] | None = None) -> np.ndarray:
         """All element ids, or those whose property id is in ``pids`` (CONM2 has none)."""
         blocks = [self.beams, self.rods, self.springs, self.bushes]

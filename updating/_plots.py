@@ -233,13 +233,7 @@ def plot_structure(
     fig = ax.get_figure()
     xyz = np.asarray(model.xyz, dtype=np.float64)
     node_ids = np.asarray(model.node_ids)
-    rows, eids = [], []
-    for group in (model.beams, model.rods, model.bushes, model.springs):
-        n = np.asarray(group.nodes).reshape(-1, 2)
-        keep = (n >= 0).all(axis=1)
-        rows.append(n[keep])
-        eids.append(np.asarray(group.ids)[keep])
-    rows, eids = np.concatenate(rows), np.concatenate(eids)
+    rows, eids = model.segments()
     cmap = colormaps["viridis"]
 
     ev = _values_array(element_values, eids)
