@@ -507,8 +507,11 @@ def _one(method, solver, sensors, exc_pos, masses, omega, phi, D, r, asher_band)
     return om, f, float(mode_indicator(Hc[sensors] @ f))
 
 
-def _prepare(K, M, damping, exciters_or_candidates, name, method, reduced_mass, n_modes, frequencies_hz, sensors):
+def _prepare(K, M, damping, exciters_or_candidates, name, method, reduced_mass, n_modes, frequencies_hz, sensors,
+             asher_band):
     _check_method(method, reduced_mass)
+    if not asher_band > 0:
+        raise ValueError(f"asher_band must be positive, got {asher_band}")
     K, M, D = _system(K, M, damping)
     if not np.any(D):
         raise ValueError("force appropriation needs a damped model (D = 0: the response is singular at resonance)")
@@ -558,10 +561,8 @@ def appropriate(
     none (Asher: no zero of the determinant in the window; thesis method: dependent runs).
     """
     K, M, D, ex, sens, lam, phi, omega = _prepare(
-        K, M, damping, exciters, "exciters", method, reduced_mass, n_modes, frequencies_hz, sensors
+        K, M, damping, exciters, "exciters", method, reduced_mass, n_modes, frequencies_hz, sensors, asher_band
     )
-    if not asher_band > 0:
-        raise ValueError(f"asher_band must be positive, got {asher_band}")
     masses = _reduced_mass(K, M, ex, reduced_mass)
     solver = _Solver(K, M, D, ex)
     out = []
@@ -596,13 +597,11 @@ def exciter_search(
     in combination order).
     """
     K, M, D, cand, sens, lam, phi, omega = _prepare(
-        K, M, damping, candidates, "candidates", method, reduced_mass, n_modes, frequencies_hz, sensors
+        K, M, damping, candidates, "candidates", method, reduced_mass, n_modes, frequencies_hz, sensors, asher_band
     )
     n_exciters = _count("n_exciters", n_exciters)
     if not 1 <= n_exciters <= len(cand):
         raise ValueError(f"n_exciters must be in 1..{len(cand)} (the number of candidates), got {n_exciters}")
-    if not asher_band > 0:
-        raise ValueError(f"asher_band must be positive, got {asher_band}")
     solver = _Solver(K, M, D, cand)
     full_mass = _reduced_mass(K, M, cand, "diagonal") if reduced_mass == "diagonal" else None
     table = []
