@@ -560,16 +560,10 @@ def appropriate(
     **Returns:** one :class:`Appropriation` per mode; ``force`` None where the method finds
     none (Asher: no zero of the determinant in the window; thesis method: dependent runs).
     """
-    K, M, D, ex, sens, lam, phi, omega = _prepare(
-        K, M, damping, exciters, "exciters", method, reduced_mass, n_modes, frequencies_hz, sensors, asher_band
-    )
-    masses = _reduced_mass(K, M, ex, reduced_mass)
-    solver = _Solver(K, M, D, ex)
-    out = []
-    for r in range(len(lam)):
-        om, f, mif = _one(method, solver, sens, np.arange(len(ex)), masses, omega, phi, D, r, asher_band)
-        out.append(Appropriation(method, r + 1, tuple(int(e) for e in ex), om / (2.0 * np.pi), f, mif))
-    return out
+    exciters = np.asarray(exciters)
+    table = _ranked(K, M, damping, exciters, "exciters", exciters.size, method, n_modes, frequencies_hz, sensors,
+                    reduced_mass, asher_band)
+    return [rows[0] for rows in table]
 
 
 def exciter_search(
@@ -596,8 +590,16 @@ def exciter_search(
     :class:`Appropriation` s, best MIF first (subsets without a force vector last,
     in combination order).
     """
+    return _ranked(K, M, damping, candidates, "candidates", n_exciters, method, n_modes, frequencies_hz, sensors,
+                   reduced_mass, asher_band)
+
+
+def _ranked(K, M, damping, candidates, name, n_exciters, method, n_modes, frequencies_hz, sensors, reduced_mass,
+            asher_band) -> list[list[Appropriation]]:
+    """Every subset of ``n_exciters`` candidates appropriated for each mode, best MIF first
+    (one subset when ``n_exciters`` is the number of candidates: :func:`appropriate`)."""
     K, M, D, cand, sens, lam, phi, omega = _prepare(
-        K, M, damping, candidates, "candidates", method, reduced_mass, n_modes, frequencies_hz, sensors, asher_band
+        K, M, damping, candidates, name, method, reduced_mass, n_modes, frequencies_hz, sensors, asher_band
     )
     n_exciters = _count("n_exciters", n_exciters)
     if not 1 <= n_exciters <= len(cand):
