@@ -56,6 +56,7 @@ def test_identify_separated_modes_with_noise(chain5, identified):
     np.testing.assert_allclose(scale[4], 1.0, atol=0.1)  # mode 5 is weak at the driving point: 6.5 %
     assert found.sensors.labels == ["1+Z", "2+Z", "3+Z", "4+Z", "5+Z"]
     assert not np.iscomplexobj(found.shapes)
+    assert found.frequencies_hz.dtype == found.damping_ratios.dtype == found.shapes.dtype == np.float64
     assert report["fit"]["nmse_percent_worst"] < 0.05  # the synthesis fits to the noise level
     assert all(m["n_orders_stable"] >= 25 for m in report["modes"])  # of 39 orders; measured 26–28
     assert report["coherence"] == "not given" and report["masked_bands_hz"] == []

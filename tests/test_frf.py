@@ -63,6 +63,7 @@ def test_output_noise_h1_unbiased_h2_biased_high(random_test):
     assert np.median(np.abs(r2[mid])) > 1.3  # ... and that is far from 1
     assert abs(np.median(h1.coherence[mid] - 1 / bias[mid])) < 0.02  # γ² = 1/(1 + N/(|H|²X)); measured 0.010
     np.testing.assert_array_equal(h1.coherence, h2.coherence)  # γ² does not depend on the estimator
+    assert h1.values.dtype == np.complex128 and h1.coherence.dtype == h1.frequencies_hz.dtype == np.float64
 
 
 def test_input_noise_h2_unbiased_h1_biased_low(random_test):
