@@ -122,13 +122,18 @@ class ParameterSet:
         unknown = set(data) - {"parameter", "options"}
         if unknown:
             raise ValueError(f"{path}: unknown top-level keys {sorted(unknown)}")
+        return cls.from_dict(data, str(path))
+
+    @classmethod
+    def from_dict(cls, data: dict, where: str) -> ParameterSet:
+        """From the ``parameter`` list and ``options`` table of parsed TOML; errors name ``where``."""
         params = []
         for i, entry in enumerate(data.get("parameter", []), 1):
             allowed = {"name", "kind", "pids", "eids", "nodes", "bounds"}
             extra = set(entry) - allowed
             if extra or "name" not in entry or "kind" not in entry:
                 raise ValueError(
-                    f"{path}: parameter #{i}: needs name and kind; allowed keys {sorted(allowed)}"
+                    f"{where}: parameter #{i}: needs name and kind; allowed keys {sorted(allowed)}"
                     + (f", unknown {sorted(extra)}" if extra else "")
                 )
             try:
@@ -140,20 +145,20 @@ class ParameterSet:
                     bounds=tuple(float(x) for x in entry.get("bounds", (-0.5, 1.0))),
                 ))
             except ValueError as err:
-                raise ValueError(f"{path}: parameter #{i}: {err}") from None
+                raise ValueError(f"{where}: parameter #{i}: {err}") from None
         if not params:
-            raise ValueError(f"{path}: no [[parameter]] declared")
-        opts = data.get("options", {})
+            raise ValueError(f"{where}: no [[parameter]] declared")
+        opts = dict(data.get("options", {}))
         known = set(Options.__dataclass_fields__)
         if set(opts) - known:
-            raise ValueError(f"{path}: unknown options {sorted(set(opts) - known)}; allowed {sorted(known)}")
+            raise ValueError(f"{where}: unknown options {sorted(set(opts) - known)}; allowed {sorted(known)}")
         for key in ("active_modes", "passive_modes"):
             if key in opts:
                 opts[key] = tuple(int(x) for x in opts[key])
         try:
             return cls(tuple(params), Options(**opts))
         except (ValueError, TypeError) as err:
-            raise ValueError(f"{path}: {err}") from None
+            raise ValueError(f"{where}: {err}") from None
 
 
 class Parameterisation(eqx.Module):

@@ -80,21 +80,34 @@ def model_modes(theta: Float[Array, " p"], problem: Problem):
 def evaluate(theta: Float[Array, " p"], problem: Problem) -> Evaluation:
     """Solve the model at θ and pair its modes with the test modes."""
     lam, phi_s = model_modes(theta, problem)
-    f_a = jaxfem.frequencies_hz(lam)
-    f_e = jnp.sqrt(problem.lam_e) / (2 * jnp.pi)
-    index, paired = pair_modes_masked(
-        jax.lax.stop_gradient(f_a), jax.lax.stop_gradient(phi_s), f_e, problem.phi_e,
-        min_mac=problem.min_mac, max_freq_dev=problem.max_freq_dev,
-    )
+    index, paired = pair(lam, phi_s, problem)
     safe = jnp.where(paired, index, 0)
-    phi_p = phi_s[:, safe]
-    macs = jnp.diagonal(mac(jax.lax.stop_gradient(phi_p), problem.phi_e))
-    return Evaluation(lam[safe], phi_p, index, paired, jnp.where(paired, macs, 0.0), lam, phi_s)
+    return paired_evaluation(lam[safe], phi_s[:, safe], index, paired, lam, phi_s, problem)
+
+
+def pair(lam: Float[Array, " nm"], phi_s: Float[Array, "ns nm"], problem: Problem):
+    """Masked one-to-one pairing of model modes with the test modes (no derivative):
+    the model mode per test mode and whether it is paired."""
+    f_a = jaxfem.frequencies_hz(jax.lax.stop_gradient(lam))
+    f_e = jnp.sqrt(problem.lam_e) / (2 * jnp.pi)
+    return pair_modes_masked(f_a, jax.lax.stop_gradient(phi_s), f_e, problem.phi_e,
+                             min_mac=problem.min_mac, max_freq_dev=problem.max_freq_dev)
+
+
+def paired_evaluation(lam_a, phi_a, index, paired, lam, phi_s, problem: Problem) -> Evaluation:
+    """The :class:`Evaluation` from the paired model modes (λ_a, φ_a per test mode)."""
+    macs = jnp.diagonal(mac(jax.lax.stop_gradient(phi_a), problem.phi_e))
+    return Evaluation(lam_a, phi_a, index, paired, jnp.where(paired, macs, 0.0), lam, phi_s)
 
 
 def residuals(theta: Float[Array, " p"], problem: Problem):
     """ε(θ) as a dict pytree, and the :class:`Evaluation` as auxiliary output."""
     ev = evaluate(theta, problem)
+    return rows(theta, problem, ev), ev
+
+
+def rows(theta: Float[Array, " p"], problem: Problem, ev: Evaluation) -> dict:
+    """The residual rows of the paired active test modes, eqs. (3.12), (3.21), (3.4)."""
     rows = ev.paired & problem.active
     out = {}
     if problem.use_lam:
@@ -106,7 +119,7 @@ def residuals(theta: Float[Array, " p"], problem: Problem):
         eps = (phi_e - msf * ev.phi_a) / jnp.linalg.norm(phi_e, axis=0)  # eq. (3.21)
         out["eigenvector"] = jnp.where(rows[None, :], eps, 0.0)
     out["regularisation"] = jnp.sqrt(problem.mu) * theta
-    return out, ev
+    return out
 
 
 def auto_eigenvalue_weights(theta: Float[Array, " p"], problem: Problem) -> Float[Array, " ne"]:

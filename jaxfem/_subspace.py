@@ -1,0 +1,195 @@
+"""Lowest modes of a perturbed model by warm-started subspace iteration (Bathe & Wilson 1972).
+
+Monte-Carlo and updating loops solve thousands of eigenproblems that are small
+perturbations of one reference: a full LAPACK solve (all n modes, O(n³) with a large
+constant) throws that away. :func:`subspace` starts from a basis of q ≥ m vectors close
+to the wanted modes — the reference modes, or the previous iterate's — and repeats
+
+    Y = (K − σM)⁻¹ M V                     inverse iteration on the block (one Cholesky)
+    K_r = YᵀKY, M_r = YᵀMY, K_r Q = M_r Q Μ  Rayleigh–Ritz,  V = Y Q
+
+until every wanted Ritz vector passes the inverse-iteration test
+‖(μ_r − σ)(K − σM)⁻¹ M v_r − v_r‖ ≤ tol ‖v_r‖; mode r converges at the rate
+(λ_r − σ)/(λ_{q+1} − σ) per sweep. It carries no derivative: :func:`ritz_modes` picks
+converged modes from the result and differentiates them exactly.
+
+Derivative of a converged mode r (φ mass-normalised, g_r = (dK − λ_r dM) φ_r):
+
+    dλ_r = φ_rᵀ g_r                                              thesis eq. (3.18)
+    dφ_r = Σ_{s≤m, s∉c(r)} φ_s (−φ_sᵀ g_r)/(λ_s − λ_r) − ½(φ_rᵀ dM φ_r) φ_r + z_r   eqs. (3.23)–(3.29)
+
+with the sum over the m converged modes and z_r, M-orthogonal to them, the exact rest of
+the modal expansion: (K − λ_r M) z_r = b_r, b_r = h_r − M Φ_m Φ_mᵀ h_r,
+h_r = −g_r + dλ_r M φ_r. It is solved by preconditioned Richardson iteration with
+B⁻¹ = U (Μ_u − λ_r)⁻¹ Uᵀ + P (K − σM)⁻¹ Pᵀ (U: the unconverged Ritz vectors, P: the
+projector M-orthogonal to the whole basis), whose error falls by (λ_r − σ)/(λ_{q+1} − σ)
+per sweep — the same factorisation as the forward solve, no new one. Clusters of nearly
+equal eigenvalues are handled as in :func:`jaxfem.eigh` (no rotation inside a cluster,
+dλ the cluster mean).
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float, Int
+
+from . import _lapack
+from ._eigen import (
+    DEGENERATE_RTOL,
+    _clusters,
+    _operator,
+    _signs,
+    _tangent_matmul,
+    _values_structure,
+)
+from ._model import Opaque
+
+
+class Subspace(eqx.Module):
+    """Result of :func:`subspace`: Ritz values ``lam`` (q,) ascending in (rad/s)², the
+    M-orthonormal Ritz vectors ``basis`` (n, q) — the warm start of the next solve —, the
+    Cholesky factor ``factor`` of K − σM, the shift σ, ``converged`` (all m wanted modes
+    passed the test), ``residual`` (the largest test value), ``sweeps`` (inverse
+    iterations done) and ``n_modes`` = m."""
+
+    lam: Float[Array, " q"]
+    basis: Float[Array, "n q"]
+    factor: Float[Array, "n n"]
+    shift: Float[Array, ""]
+    converged: Bool[Array, ""]
+    residual: Float[Array, ""]
+    sweeps: Int[Array, ""]
+    n_modes: int = eqx.field(static=True)
+
+
+def _rayleigh_ritz(K, M, Y):
+    """Ritz pairs of (K, M) on span Y: values ascending, vectors M-orthonormal; and M V."""
+    KY, MY = K.matmul(Y), M.matmul(Y)
+    kr, mr = Y.T @ KY, Y.T @ MY
+    lr = _lapack.cholesky(0.5 * (mr + mr.T))
+    a = _lapack.solve_lower(lr, _lapack.solve_lower(lr, kr).T)
+    mu, z = _lapack.eigh(0.5 * (a + a.T))
+    q = _lapack.solve_upper(lr.T, z)
+    return mu, Y @ q, MY @ q
+
+
+def subspace(K, M, start: Float[Array, "n q"], n_modes: int, *, shift: float = 0.0,
+             tol: float = 1e-9, max_sweeps: int = 40) -> Subspace:
+    """Lowest ``n_modes`` modes of ``K φ = λ M φ`` by subspace iteration from ``start``.
+
+    **Arguments:** K (positive definite after the shift), M (positive definite), as arrays
+    or :class:`jaxfem.ElementMatrix`; ``start``: q > n_modes vectors near the wanted modes
+    (e.g. the reference modes, or ``basis`` of a previous solve); ``shift`` σ below the
+    lowest eigenvalue (negative for a free structure); ``tol``: inverse-iteration test on
+    each wanted mode; ``max_sweeps``: the cap — the caller falls back to a full solve when
+    ``converged`` is False.
+
+    **Returns:** :class:`Subspace`; no derivative flows through it (see :func:`ritz_modes`).
+    """
+    K, M = _operator("K", K), _operator("M", M)
+    if len(M.massless):
+        raise ValueError("subspace iteration needs a mass on every DoF; use jaxfem.eigh for massless DoFs")
+    q = start.shape[1]
+    if not 1 <= n_modes < q:
+        raise ValueError(f"need 1 ≤ n_modes < q basis vectors, got n_modes = {n_modes}, q = {q}")
+    K, M, start = jax.lax.stop_gradient((K, M, start))
+    sigma = jnp.asarray(shift, dtype=start.dtype)
+    factor = _lapack.cholesky(K.todense() - sigma * M.todense())
+    mu, V, MV = _rayleigh_ritz(K, M, start / jnp.linalg.norm(start, axis=0))
+
+    def test(V, MV, mu):
+        Y = _lapack.cho_solve(factor, MV) * (mu - sigma)
+        err = jnp.linalg.norm(Y[:, :n_modes] - V[:, :n_modes], axis=0) / jnp.linalg.norm(V[:, :n_modes], axis=0)
+        return Y, jnp.max(err)
+
+    def cond(carry):
+        k, *_, err = carry
+        return (k < max_sweeps) & ~(err <= tol)  # NaN (indefinite K − σM) stops too
+
+    def body(carry):
+        k, _, _, Y, _ = carry
+        mu, V, MV = _rayleigh_ritz(K, M, Y)
+        return (k + 1, mu, V, *test(V, MV, mu))
+
+    k, mu, V, _, err = jax.lax.while_loop(cond, body, (jnp.asarray(0), mu, V, *test(V, MV, mu)))
+    V = V * _signs(V)
+    return Subspace(mu, V, factor, sigma, err <= tol, err, k, n_modes)
+
+
+def ritz_modes(K, M, solution: Subspace, index: Int[Array, " k"], *, rtol: float = DEGENERATE_RTOL,
+               refine_tol: float = 1e-14, max_refine: int = 200
+               ) -> tuple[Float[Array, " k"], Float[Array, "n k"]]:
+    """The converged modes ``index`` (< ``solution.n_modes``) of a :func:`subspace` solve,
+    ``(λ, φ)``, with exact derivatives in the values of K and M (module documentation).
+
+    The values are those of ``solution`` (computed without derivative); forward-mode
+    derivatives (``jax.jvp``, ``jax.jacfwd``) solve the rest of the modal expansion with
+    the solution's factorisation, to a relative change ≤ ``refine_tol`` or
+    ``max_refine`` sweeps.
+    """
+    K, M = _operator("K", K), _operator("M", M)
+    (kv, ks), (mv, ms) = _values_structure(K), _values_structure(M)
+    return _ritz(kv, mv, solution=jax.lax.stop_gradient(solution), index=jnp.asarray(index),
+                 structure=Opaque((ks, ms)), rtol=float(rtol), refine_tol=float(refine_tol),
+                 max_refine=int(max_refine))
+
+
+@eqx.filter_custom_jvp
+def _ritz(kv, mv, *, solution, index, structure, rtol, refine_tol, max_refine):
+    return solution.lam[index], solution.basis[:, index]
+
+
+@_ritz.def_jvp
+def _ritz_jvp(primals, tangents, *, solution, index, structure, rtol, refine_tol, max_refine):
+    ks, ms = structure.value
+    K, M = eqx.combine(primals[0], ks), eqx.combine(primals[1], ms)
+    dK, dM = tangents
+    m = solution.n_modes
+    lam, V = solution.lam, solution.basis
+    lam_m, phi_m = lam[:m], V[:, :m]
+    gk, gm = _tangent_matmul(K, dK, phi_m), _tangent_matmul(M, dM, phi_m)
+    # Eigenvalue derivatives, eq. (3.18), cluster means as in jaxfem.eigh.
+    cluster = _clusters(lam_m, rtol)
+    same = cluster[:, None] == cluster[None, :]
+    d = jnp.sum(phi_m * (gk - lam_m * gm), axis=0)
+    dlam_m = (same.astype(d.dtype) @ d) / same.sum(axis=1).astype(d.dtype)
+    # Modal expansion over the converged modes, eqs. (3.23)-(3.29).
+    lam_r, phi_r = lam_m[index], phi_m[:, index]
+    g = gk[:, index] - lam_r * gm[:, index]
+    h = -g + dlam_m[index] * M.matmul(phi_r)
+    c = phi_m.T @ h
+    same_r = same[:, index]
+    denom = lam_m[:, None] - lam_r[None, :]
+    coef = jnp.where(same_r, 0.0, c / jnp.where(same_r, 1.0, denom))
+    own = jnp.arange(m)[:, None] == index[None, :]
+    coef = jnp.where(own, -0.5 * jnp.sum(phi_r * gm[:, index], axis=0)[None, :], coef)
+    dphi = phi_m @ coef
+    # The rest z_r, M-orthogonal to the converged modes: (K − λ_r M) z_r = b_r.
+    b = h - M.matmul(phi_m @ c)
+    U, lam_u = V[:, m:], lam[m:]
+    factor = solution.factor
+
+    def precondition(r):
+        coarse = U @ ((U.T @ r) / (lam_u[:, None] - lam_r[None, :]))
+        rp = r - M.matmul(V @ (V.T @ r))
+        x = _lapack.cho_solve(factor, rp)
+        return coarse + x - V @ (V.T @ M.matmul(x))
+
+    def operator(z):
+        return K.matmul(z) - lam_r * M.matmul(z)
+
+    def cond(carry):
+        k, _, step = carry
+        return (k < max_refine) & (step > refine_tol)
+
+    def body(carry):
+        k, z, _ = carry
+        dz = precondition(b - operator(z))
+        scale = jnp.maximum(jnp.max(jnp.abs(z)), jnp.finfo(z.dtype).tiny)
+        return k + 1, z + dz, jnp.max(jnp.abs(dz)) / scale
+
+    z0 = precondition(b)
+    _, z, _ = jax.lax.while_loop(cond, body, (jnp.asarray(0), z0, jnp.asarray(jnp.inf, z0.dtype)))
+    return (lam_r, phi_r), (dlam_m[index], dphi + z)
