@@ -163,7 +163,7 @@ def _ritz_jvp(primals, tangents, *, solution, index, structure, rtol, refine_tol
     same_r = same[:, index]
     denom = lam_m[:, None] - lam_r[None, :]
     coef = jnp.where(same_r, 0.0, c / jnp.where(same_r, 1.0, denom))
-    own = jnp.arange(m)[:, None] == index[None, :]
+    own = jnp.arange(m, dtype=index.dtype)[:, None] == index[None, :]
     coef = jnp.where(own, -0.5 * jnp.sum(phi_r * gm[:, index], axis=0)[None, :], coef)
     dphi = phi_m @ coef
     # The rest z_r, M-orthogonal to the converged modes: (K − λ_r M) z_r = b_r.

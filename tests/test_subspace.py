@@ -60,9 +60,13 @@ def test_ritz_derivatives_match_finite_differences_and_eigh(tree):
     lam0, phi0, _ = _solve(model, groups, start, a)
     ref = np.argsort(-np.abs(np.asarray(phi0)), axis=0)[1]
     fix = lambda p: p * jnp.sign(p[ref, jnp.arange(N)])
-    jl, jp = jax.jit(jax.jacfwd(lambda a: (lambda r: (r[0], fix(r[1])))(_solve(model, groups, start, a))))(a)
+
+    def fixed(lam, phi, *_):
+        return lam, fix(phi)
+
+    jl, jp = jax.jit(jax.jacfwd(lambda a: fixed(*_solve(model, groups, start, a))))(a)
     jl_full, jp_full = jax.jacfwd(
-        lambda a: (lambda r: (r[0], fix(r[1])))(jaxfem.eigh(*jaxfem.assemble(jaxfem.correct(model, groups, a)), N)))(a)
+        lambda a: fixed(*jaxfem.eigh(*jaxfem.assemble(jaxfem.correct(model, groups, a)), N)))(a)
     np.testing.assert_allclose(jl, jl_full, rtol=1e-8, atol=1e-8 * float(np.max(np.abs(jl_full))))
     h = 1e-5
     step = jax.jit(lambda a: fix(_solve(model, groups, start, a)[1]))
