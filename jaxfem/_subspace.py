@@ -119,7 +119,7 @@ def subspace(K, M, start: Float[Array, "n q"], n_modes: int, *, shift: float = 0
 
 
 def ritz_modes(K, M, solution: Subspace, index: Int[Array, " k"], *, rtol: float = DEGENERATE_RTOL,
-               refine_tol: float = 1e-14, max_refine: int = 200
+               refine_tol: float = 1e-12, max_refine: int = 50
                ) -> tuple[Float[Array, " k"], Float[Array, "n k"]]:
     """The converged modes ``index`` (< ``solution.n_modes``) of a :func:`subspace` solve,
     ``(λ, φ)``, with exact derivatives in the values of K and M (module documentation).
