@@ -50,14 +50,13 @@ from ._model import Opaque
 class Subspace(eqx.Module):
     """Result of :func:`subspace`: Ritz values ``lam`` (q,) ascending in (rad/s)², the
     M-orthonormal Ritz vectors ``basis`` (n, q) — the warm start of the next solve —, the
-    Cholesky factor ``factor`` of K − σM, the shift σ, ``converged`` (all m wanted modes
+    Cholesky factor ``factor`` of K − σM, ``converged`` (all m wanted modes
     passed the test), ``residual`` (the largest test value), ``sweeps`` (inverse
     iterations done) and ``n_modes`` = m."""
 
     lam: Float[Array, " q"]
     basis: Float[Array, "n q"]
     factor: Float[Array, "n n"]
-    shift: Float[Array, ""]
     converged: Bool[Array, ""]
     residual: Float[Array, ""]
     sweeps: Int[Array, ""]
@@ -115,7 +114,7 @@ def subspace(K, M, start: Float[Array, "n q"], n_modes: int, *, shift: float = 0
 
     k, mu, V, _, err = jax.lax.while_loop(cond, body, (jnp.asarray(0), mu, V, *test(V, MV, mu)))
     V = V * _signs(V)
-    return Subspace(mu, V, factor, sigma, err <= tol, err, k, n_modes)
+    return Subspace(mu, V, factor, err <= tol, err, k, n_modes)
 
 
 def ritz_modes(K, M, solution: Subspace, index: Int[Array, " k"], *, rtol: float = DEGENERATE_RTOL,

@@ -58,4 +58,7 @@ def test_study_from_toml(tmp_path):
     (tmp_path / "bad.toml").write_text('[errors]\nthermal = [0.1]\n')
     with pytest.raises(ValueError, match="unknown error categories"):
         Study.from_toml(tmp_path / "bad.toml")
+    (tmp_path / "both.toml").write_text('[study]\nmodelling_error = 1\nerror_pids = [3]\n')
+    with pytest.raises(ValueError, match="not both"):
+        Study.from_toml(tmp_path / "both.toml")
     assert jnp.asarray(0.0).dtype == jnp.float64

@@ -46,7 +46,7 @@ from identification import ModalData, Sensors, observation_matrix
 from jaxfem.io import read_bdf
 
 from ._compiled import Compiled
-from ._parameters import Options, ParameterSet
+from ._parameters import Options, Parameter, ParameterSet
 from ._residuals import Problem, pair, paired_evaluation, residuals, rows
 from ._solve import build_problem
 
@@ -165,6 +165,8 @@ class Study:
         model = Path(str(data_dir / "tree.bdf")) if model == "tree" else base / model
         sensors = Path(str(data_dir / "tree_sensors.csv")) if sensors == "tree" else base / sensors
         if "modelling_error" in s:
+            if {"error_pids", "error_alpha"} & set(s):
+                raise ValueError(f"{where}: give modelling_error or error_pids/error_alpha, not both")
             number = int(s.pop("modelling_error"))
             if number not in TABLE_4_6:
                 raise ValueError(f"{where}: modelling_error {number}: Table 4.6 has models 1, 2, 3")
@@ -181,8 +183,7 @@ class Study:
                        error_alpha=float(alpha), parameters=parameters,
                        n_modes=tuple(int(n) for n in s.pop("n_modes", (2, 5, 10, 20))),
                        errors=tuple((str(c), tuple(float(m) for m in v)) for c, v in errors.items()),
-                       **{k: (str(v) if k == "eigensolver" else int(v)) for k, v in s.items()
-                          if k not in ("error_pids", "error_alpha")})
+                       **{k: (str(v) if k == "eigensolver" else int(v)) for k, v in s.items()})
         except (TypeError, ValueError) as err:
             raise ValueError(f"{where}: {err}") from None
 
@@ -190,8 +191,6 @@ class Study:
 def tree_parameters(options: Options | None = None) -> ParameterSet:
     """The tree's substructure stiffness factors: compound blades 2 & 4, homogeneous
     blades 1 & 3, upper pylon (Table 4.5 components); options of §4.3.3.3 (16 iterations)."""
-    from ._parameters import Parameter
-
     options = options or Options(tolerance=1e-10, max_iterations=16)
     return ParameterSet((Parameter("blades_2_4", "stiffness", pids=(2, 4)),
                          Parameter("blades_1_3", "stiffness", pids=(1, 3)),
@@ -216,7 +215,6 @@ class _Aux(eqx.Module):
 @dataclasses.dataclass(frozen=True)
 class _Settings:
     eigensolver: str
-    n_basis: int
     shift: float
     max_iterations: int
     tolerance: float
@@ -347,7 +345,7 @@ class _Group:
         self.warm = basis
         self.devices = devices
         self.settings = {
-            kind: _Settings(kind, q, -0.01 * float(lam0[n_model - 1]) if rigid else 0.0, opts.max_iterations,
+            kind: _Settings(kind, -0.01 * float(lam0[n_model - 1]) if rigid else 0.0, opts.max_iterations,
                             opts.tolerance, opts.solver == "gauss-newton")
             for kind in ("subspace", "full")}
         self.n = n
