@@ -14,6 +14,7 @@ from ._model import Model as Model
 from ._model import Viscoelastic as Viscoelastic
 from ._modes import modes as modes
 from ._subspace import Subspace as Subspace
+from ._subspace import dense_modes as dense_modes
 from ._subspace import ritz_modes as ritz_modes
 from ._subspace import subspace as subspace
 from ._model import correct as correct

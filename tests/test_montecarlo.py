@@ -1,4 +1,5 @@
-"""Monte-Carlo study of thesis §4.3 (work in progress: core procedure, chunks, resume)."""
+"""Monte-Carlo study of thesis §4.3: exact recovery, chunks and resume, sharding, the
+findings of §4.3.4."""
 
 import jax
 import jax.numpy as jnp
@@ -13,9 +14,9 @@ EXACT = 1.0 / (1.0 + TABLE_4_6[1][1]) - 1.0  # the correction that undoes K̃_1 
 @pytest.fixture(scope="module")
 def zero_error():
     """Tree model 1 (Table 4.6), 3 modes at the 49 measured DoFs, shape and frequency errors
-    of zero magnitude; one sample per chunk, one device (each device compiles its own copy)."""
+    of zero magnitude and one 5 % relative error; one sample per chunk, one device."""
     study = default_study(1, n_modes=(3,), samples=1, chunk_size=1,
-                          errors=(("absolute", (0.0,)), ("frequency", (0.0,))))
+                          errors=(("absolute", (0.0,)), ("frequency", (0.0,)), ("relative", (0.05,))))
     return study, Runner(study, devices=jax.devices()[:1])
 
 
@@ -26,10 +27,11 @@ def test_zero_measurement_error_recovers_the_modelling_error(zero_error, tmp_pat
     d = result.samples[3]
     assert d["alpha"].dtype == np.float64
     assert np.all(d["status"] == 0) and not d["fallback"].any()
-    np.testing.assert_allclose(d["alpha"][:, 0], EXACT, atol=1e-6)  # blades 2 & 4
-    np.testing.assert_allclose(d["alpha"][:, 1:], 0.0, atol=1e-6)  # untouched substructures
+    np.testing.assert_allclose(d["alpha"][:2, 0], EXACT, atol=1e-6)  # blades 2 & 4
+    np.testing.assert_allclose(d["alpha"][:2, 1:], 0.0, atol=1e-6)  # untouched substructures
+    assert np.abs(d["alpha"][2] - d["alpha"][0]).max() > 1e-4  # the 5 % relative error moves them
     np.testing.assert_allclose(result.reference[3]["alpha"][0], [EXACT, 0.0, 0.0], atol=1e-6)
-    assert [p["done"] for p in seen] == [1, 2]
+    assert [p["done"] for p in seen] == [1, 2, 3]
     # Interrupted run: one finished chunk lost; the rerun computes only that one.
     (tmp_path / "chunks" / "n03_0000001.npz").unlink()
     seen.clear()
@@ -37,7 +39,17 @@ def test_zero_measurement_error_recovers_the_modelling_error(zero_error, tmp_pat
     assert len(seen) == 1
     np.testing.assert_array_equal(again.samples[3]["alpha"], d["alpha"])
     stats = again.statistics()
-    assert len(stats) == 2 and all(s["succeeded"] == 1 for s in stats)
+    assert len(stats) == 3 and all(s["succeeded"] == 1 for s in stats)
+
+
+def test_samples_sharded_over_four_devices_equal_one_device(zero_error):
+    """The sample axis sharded over the 4 forced host devices (3 samples padded to 4)."""
+    study, one = zero_error
+    assert len(jax.devices()) == 4
+    sharded, single = Runner(study).chunk(3, 0, 3), one.chunk(3, 0, 3)
+    np.testing.assert_allclose(sharded["alpha"], single["alpha"], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(sharded["f_a"], single["f_a"], rtol=1e-12)
+    np.testing.assert_array_equal(sharded["status"], single["status"])
 
 
 def test_a_directory_of_another_study_is_refused(zero_error, tmp_path):
@@ -62,3 +74,45 @@ def test_study_from_toml(tmp_path):
     with pytest.raises(ValueError, match="not both"):
         Study.from_toml(tmp_path / "both.toml")
     assert jnp.asarray(0.0).dtype == jnp.float64
+
+
+@pytest.fixture(scope="module")
+def trends():
+    """Tree model 1, 3 and 10 modes, relative shape errors 1/2/4 % and 1 % frequency
+    errors, 6 draws per cell (shared across magnitudes: common random numbers)."""
+    study = default_study(1, n_modes=(3, 10), samples=6, chunk_size=6,
+                          errors=(("relative", (0.01, 0.02, 0.04)), ("frequency", (0.01,))))
+    result = montecarlo(study, runner=Runner(study, devices=jax.devices()[:1]))
+    stats = {(s["n_modes"], s["category"], s["magnitude"]): s for s in result.statistics()}
+    # Failures are counted per cell and left out: fits to noisy frequencies may diverge
+    # (3 parameters, few modes: cf. Δα ≈ 660 % in §4.3.4.1); with 10 modes Gauss-Newton
+    # may oscillate between the close modes 7-9 (measured: 2 of 6 at 2 % and 4 %).
+    failed = {k: sum(s["failed"].values()) for k, s in stats.items()}
+    assert sum(failed.values()) == sum(result.failures.values())
+    assert all(v == 0 for k, v in failed.items() if k[:2] == (3, "relative")), str(failed)
+    assert all(v <= 2 for k, v in failed.items() if k[1] == "relative"), str(failed)
+    assert result.fallbacks == 0
+    return stats
+
+
+def test_factor_uncertainty_grows_about_linearly_with_small_errors(trends):
+    """§4.3.4.1: Δα grows with the error magnitude, nearly linearly below 5 %."""
+    std = [trends[3, "relative", m]["delta_alpha"]["blades_2_4"]["std"] for m in (0.01, 0.02, 0.04)]
+    assert std[0] > 1e-3
+    np.testing.assert_allclose([std[1] / std[0], std[2] / std[0]], [2.0, 4.0], rtol=0.1)
+
+
+def test_relative_error_uncertainty_falls_with_more_modes(trends):
+    """§4.3.4.1: more modes average the relative shape errors out."""
+    for m in (0.01, 0.02, 0.04):
+        rms = {n: trends[n, "relative", m]["delta_alpha"]["blades_2_4"]["rms"] for n in (3, 10)}
+        assert rms[10] < 0.2 * rms[3]
+
+
+def test_frequency_errors_pass_into_the_frequencies_at_their_own_size(trends):
+    """§4.3.5: Δf from 1 % frequency errors is of the order of 1 %; Δf from shape errors
+    is much smaller."""
+    rms = np.sqrt(np.mean(np.square(trends[3, "frequency", 0.01]["delta_f"]["rms"])))
+    assert 0.3e-2 < rms < 3e-2
+    shape = np.sqrt(np.mean(np.square(trends[3, "relative", 0.01]["delta_f"]["rms"])))
+    assert shape < 0.2 * rms

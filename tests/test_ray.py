@@ -12,6 +12,11 @@ import ray
 from updating._montecarlo import Runner, default_study, montecarlo
 from updating._ray import montecarlo_ray
 
+# Ray starts its processes with fork + exec (subprocess); JAX warns at every fork once its
+# backend runs (other tests of this xdist worker may have started it). Exec'd children
+# share no threads with this process.
+pytestmark = pytest.mark.filterwarnings(r"ignore:os\.fork\(\) was called:RuntimeWarning")
+
 
 class DiesOnce(Runner):
     """A worker's runner whose process dies on its first chunk while ``marker`` exists

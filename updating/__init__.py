@@ -33,6 +33,7 @@ from ._montecarlo import MonteCarloResult as MonteCarloResult
 from ._montecarlo import Study as Study
 from ._montecarlo import default_study as default_study
 from ._montecarlo import montecarlo as montecarlo
+from ._ray import montecarlo_ray as montecarlo_ray
 from ._localisation import residual_forces as residual_forces
 from ._parameters import Options as Options
 from ._parameters import Parameter as Parameter

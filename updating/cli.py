@@ -773,6 +773,9 @@ def montecarlo(
         "--out", help="directory of the finished chunks, from which a rerun resumes "
                       "(default: next to the JSON, OUT.json → OUT.chunks)")] = None,
     devices: Annotated[int | None, typer.Option("--devices", min=1, help="use the first N JAX devices (default: all)")] = None,
+    ray: Annotated[str | None, typer.Option(
+        "--ray", metavar="ADDRESS", help="run the chunks on a Ray cluster: 'local' (start one here), 'auto' "
+                                         "(the cluster of this node) or ray://HEAD:10001 (needs jaxfem[ray])")] = None,
 ) -> None:
     """Monte-Carlo study of experimental errors (thesis §4.3): "measured" modes of a
     reference model with random errors of each category and magnitude (Table 4.7),
@@ -786,8 +789,8 @@ def montecarlo(
     _check_plots(plots)
     study = _load_study(config)
 
-    # Where the samples are computed: this process, sharded over the first N devices.
-    # (A cluster engine, --ray ADDRESS, is to be chosen here; the rest is shared.)
+    # Where the samples are computed: this process, sharded over the first N devices, or
+    # Ray workers (this process then only runs the error-free reference updates).
     available = jax.devices()
     if devices is not None and devices > len(available):
         _fail(f"--devices {devices}: only {len(available)} JAX devices ({available[0].platform})")
@@ -820,7 +823,16 @@ def montecarlo(
                    f"{p['done']}/{p['total']} samples, {p['rate']:.3g} samples/s, "
                    f"ETA {_duration(p['seconds_left'])}, {p['failed']} failed, {p['fallbacks']} fallbacks", err=True)
 
-    result = run_study(study, out=out, progress=progress, runner=runner)
+    if ray is None:
+        result = run_study(study, out=out, progress=progress, runner=runner)
+    else:
+        from ._ray import montecarlo_ray
+
+        try:
+            result = montecarlo_ray(study, address=None if ray == "local" else ray, out=out,
+                                    progress=progress, runner=runner)
+        except (ImportError, ConnectionError, RuntimeError) as err:
+            _fail(f"--ray {ray}: {err}")
     _write_json(json_out, json_safe(dict(result.to_json(), config=str(config), devices=len(chosen))))
     if plots is not None:
         from ._montecarlo_plots import plot_montecarlo

@@ -1,0 +1,88 @@
+"""Monte-Carlo updating throughput (thesis §4.3 study, issue 6), one run.
+
+Batched: :class:`updating._montecarlo.Runner` — the complete update (pairing + Gauss–Newton
+loop) per sample, warm-started subspace eigensolves (:func:`jaxfem.subspace`), samples
+sharded over 1, 2 and 4 forced host devices. Reference, in the same run: a Python loop
+over the samples, each one call of the same update compiled for one sample, with a full
+dense eigensolve (:func:`jaxfem.dense_modes`, all modes) at every residual evaluation.
+Both are timed after compilation. Reported: updated samples per second, the ratio,
+the largest factor difference between the two on the samples both converged, failures,
+fallbacks to full solves and the peak resident memory of the process.
+
+Usage: ``python -m benchmarks.perf_montecarlo [--samples 16] [--modes 10] [--json OUT]``.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("XLA_FLAGS", "--xla_force_host_platform_device_count=4")
+
+import argparse
+import dataclasses
+import json
+import platform
+import resource
+import time
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+import numpy as np
+
+from updating._montecarlo import Runner, default_study
+
+
+def _timed(fn):
+    t = time.perf_counter()
+    out = fn()
+    return out, time.perf_counter() - t
+
+
+def main(argv=None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--samples", type=int, default=16)
+    ap.add_argument("--modes", type=int, default=10)
+    ap.add_argument("--error", type=float, default=0.01, help="relative shape error (fraction)")
+    ap.add_argument("--json", default=None)
+    args = ap.parse_args(argv)
+    n, S = args.modes, args.samples
+    study = default_study(1, n_modes=(n,), samples=S, chunk_size=S, errors=(("relative", (args.error,)),))
+
+    # Reference: a Python loop over the one-sample update with full eigensolves.
+    loop = Runner(dataclasses.replace(study, eigensolver="full", chunk_size=1), devices=jax.devices()[:1])
+    _, compile_loop = _timed(lambda: loop.reference_update(n))
+    parts, t_loop = _timed(lambda: [loop.chunk(n, j, j + 1) for j in range(S)])
+    ref = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+    out = {"study": f"tree model 1, {n} modes, relative shape error {100 * args.error:g} %, {S} samples",
+           "machine": f"{platform.machine()}, {os.cpu_count()} cores", "jax": jax.__version__,
+           "loop_full": {"seconds": t_loop, "samples_per_s": S / t_loop, "compile_s": compile_loop,
+                         "failed": int(np.sum(ref["status"] > 0))}}
+    print(f"{out['study']}; {out['machine']}")
+    print(f"loop, full solves      : {S / t_loop:7.3f} samples/s  (compile {compile_loop:.1f} s, "
+          f"{out['loop_full']['failed']} failed)")
+    for d in (1, 2, 4):
+        runner = Runner(study, devices=jax.devices()[:d])
+        _, compile_s = _timed(lambda r=runner: r.reference_update(n))
+        got, t = _timed(lambda r=runner: r.chunk(n, 0, S))
+        both = (got["status"] == 0) & (ref["status"] == 0)
+        diff = float(np.max(np.abs(got["alpha"][both] - ref["alpha"][both]))) if both.any() else float("nan")
+        out[f"batched_{d}_devices"] = {
+            "seconds": t, "samples_per_s": S / t, "ratio_to_loop": t_loop / t, "compile_s": compile_s,
+            "failed": int(np.sum(got["status"] > 0)), "fallbacks": int(got["fallback"].sum()),
+            "max_alpha_difference_to_full": diff, "compared_samples": int(both.sum())}
+        print(f"batched, {d} device(s)  : {S / t:7.3f} samples/s  ×{t_loop / t:5.2f} the loop  "
+              f"(compile {compile_s:.1f} s, {out[f'batched_{d}_devices']['failed']} failed, "
+              f"{int(got['fallback'].sum())} fallbacks, max |Δα| to full {diff:.2e} on {int(both.sum())})")
+    out["peak_rss_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"peak resident memory: {out['peak_rss_mib']:.0f} MiB")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(out, f, indent=1)
+    return out
+
+
+if __name__ == "__main__":
+    main()
