@@ -315,16 +315,17 @@ class _QR(lx.QR):
             lx.RESULTS.successful, {}
 
 
-def _update_one(lam_e, phi_e, valid, problem: Problem, warm, settings: _Settings) -> _Outcome:
+def _update_one(lam_e, phi_e, valid, problem: Problem, theta0, warm, settings: _Settings) -> _Outcome:
     """The updating loop of :func:`updating.update` for one sample, as a jittable function:
     Optimistix LM (or GN) stepped in a ``while_loop``; convergence when an accepted step
     changes no factor by more than the tolerance; at most ``max_iterations`` accepted steps.
-    A padding sample (``valid`` False) takes no step."""
+    Starts from θ0 with the Ritz basis ``warm``; a padding sample (``valid`` False)
+    takes no step."""
     problem = eqx.tree_at(lambda p: (p.lam_e, p.phi_e), problem, (lam_e, phi_e))
     solver = (optx.GaussNewton if settings.gauss_newton else optx.LevenbergMarquardt)(
         rtol=1e-12, atol=1e-12, linear_solver=_QR())
     fn = lambda t, a: _with_jacobian(t, a, settings)
-    theta = jnp.zeros(len(problem.parameterisation.parameters))
+    theta = theta0
     # Plain shapes: inside shard_map eval_shape attaches the manual mesh, which lineax
     # would then find missing on the residual ("pytree does not match out_structure").
     f_struct, aux_struct = jax.tree.map(lambda s: jax.ShapeDtypeStruct(s.shape, s.dtype),
@@ -390,7 +391,11 @@ class _Group:
         q = min(n_free, max(2 * n_model, n_model + 8))
         lam0, basis = jaxfem.eigh(*jaxfem.assemble(initial), q)
         rigid = float(lam0[0]) < 1e-6 * float(lam0[n_model - 1])
-        self.warm = basis
+        # Where every update starts: (θ, Ritz basis) of the initial model, and for the
+        # noisy samples those of the error-free update (:meth:`sample_start`).
+        self.origin = (jnp.zeros(len(self.problem.parameterisation.parameters)), basis)
+        self._sample_start = None
+        self._reference: dict[str, _Outcome] = {}
         self.devices = devices
         self.settings = {
             kind: _Settings(kind, -0.01 * float(lam0[n_model - 1]) if rigid else 0.0, opts.max_iterations,
@@ -400,7 +405,7 @@ class _Group:
         mesh = jax.sharding.Mesh(np.array(devices), ("samples",))
         # Samples per compiled call: a whole number per device, about a chunk.
         self.batch = len(devices) * -(-study.chunk_size // len(devices))
-        self._batch = {k: Compiled(lambda l, p, v, prob, w, s=s: _sharded(l, p, v, prob, w, s, mesh))
+        self._batch = {k: Compiled(lambda l, p, v, prob, t, w, s=s: _sharded(l, p, v, prob, t, w, s, mesh))
                        for k, s in self.settings.items()}
         self._perturb = Compiled(jax.vmap(_perturb, in_axes=(0, 0, 0, None, None)))
 
@@ -414,34 +419,57 @@ class _Group:
         keys = jax.vmap(lambda i: jax.random.fold_in(base, i))(jnp.asarray(j % study.samples))
         return self._perturb(keys, jnp.asarray(cat), jnp.asarray(mag), self.f0, self.phi0)
 
-    def update(self, f, phi, kind: str) -> _Outcome:
-        """Update the samples (f, φ), sharded over the devices. Batches are padded to whole
-        multiples of ``batch`` samples (padding takes no step), so every batch size runs
-        the one compiled program."""
+    def reference(self, kind: str) -> _Outcome:
+        """The update of the error-free data from the initial model (one sample)."""
+        if kind not in self._reference:
+            self._reference[kind] = self.update(self.f0[None], self.phi0[None], kind, self.origin)
+        return self._reference[kind]
+
+    def sample_start(self, kind: str):
+        """Where the noisy samples start: θ and the Ritz basis of the error-free update
+        (each sample is a small perturbation of it: about half the iterations of a start
+        from the initial model, same converged factors), or the initial model if that
+        update failed."""
+        if self._sample_start is None:
+            ref = self.reference(kind)
+            self._sample_start = self.origin
+            if bool(ref.converged[0]) and bool(np.all(ref.paired[0])):
+                theta = jnp.asarray(ref.theta[0])
+                K, M = jaxfem.assemble(self.problem.model(theta))
+                settings = self.settings["subspace"]
+                sol = jaxfem.subspace(K, M, self.origin[1], self.problem.n_model, shift=settings.shift)
+                if bool(sol.converged):
+                    self._sample_start = (theta, sol.basis)
+        return self._sample_start
+
+    def update(self, f, phi, kind: str, start) -> _Outcome:
+        """Update the samples (f, φ) from ``start`` = (θ, Ritz basis), sharded over the
+        devices. Batches are padded to whole multiples of ``batch`` samples (padding takes
+        no step), so every batch size runs the one compiled program."""
         b = f.shape[0]
         pad = -b % self.batch
         lam = (2 * jnp.pi * f) ** 2
         lam, phi = (jnp.concatenate([x, jnp.repeat(x[-1:], pad, axis=0)]) for x in (lam, phi))
         valid = jnp.arange(b + pad) < b
-        out = [self._batch[kind](*(x[i:i + self.batch] for x in (lam, phi, valid)), self.problem, self.warm)
+        out = [self._batch[kind](*(x[i:i + self.batch] for x in (lam, phi, valid)), self.problem, *start)
                for i in range(0, b + pad, self.batch)]
         return jax.tree.map(lambda *x: np.concatenate([np.asarray(v) for v in x])[:b], *out)
 
 
-def _sharded(lam, phi, valid, problem, warm, settings: _Settings, mesh) -> _Outcome:
+def _sharded(lam, phi, valid, problem, theta0, warm, settings: _Settings, mesh) -> _Outcome:
     """:func:`_update_one` over the samples: the sample axis sharded over the mesh's
     devices (``shard_map``), in sequence on each device. Measured on XLA-CPU (2 cores,
     tree, 10 modes): a ``vmap`` over 4 samples cost 7.3 s per sample against 1.4 s in
     sequence, and vmapped LAPACK calls inside the loop can deadlock the CPU thread pool
     (``jaxfem._lapack``)."""
-    shared, static = eqx.partition((problem, warm), eqx.is_array)
+    shared, static = eqx.partition((problem, theta0, warm), eqx.is_array)
 
     def local(lam, phi, valid, shared):
-        problem, warm = eqx.combine(shared, static)
-        return jax.lax.map(lambda x: _update_one(*x, problem, warm, settings), (lam, phi, valid))
+        problem, theta0, warm = eqx.combine(shared, static)
+        return jax.lax.map(lambda x: _update_one(*x, problem, theta0, warm, settings), (lam, phi, valid))
 
     P = jax.sharding.PartitionSpec
-    # check_vma=False: the loop carries start replicated (θ = 0) and become per-sample.
+    # check_vma=False: the loop carries start replicated (θ0) and become per-sample.
     return jax.shard_map(local, mesh=mesh, in_specs=(P("samples"),) * 3 + (P(),), out_specs=P("samples"),
                          check_vma=False)(lam, phi, valid, shared)
 
@@ -469,19 +497,19 @@ class Runner:
 
     def reference_update(self, n: int) -> dict:
         """The update with error-free data (δ = 0) of the n-mode group."""
-        g = self.group(n)
-        out = g.update(g.f0[None], g.phi0[None], self.study.eigensolver)
-        return _record(out, np.asarray(g.f0)[None], np.zeros(1, bool))
+        return _record(self.group(n).reference(self.study.eigensolver), np.asarray(self.group(n).f0)[None],
+                       np.zeros(1, bool))
 
     def chunk(self, n: int, start: int, stop: int) -> dict:
         """Samples ``start:stop`` of the n-mode group: measured data, updated factors and
         modes, iterations, status; with fallback to full eigensolves where needed."""
         g = self.group(n)
         f, phi = g.data(self.study, start, stop)
-        out = g.update(f, phi, self.study.eigensolver)
+        start = g.sample_start(self.study.eigensolver)
+        out = g.update(f, phi, self.study.eigensolver, start)
         redo = ~out.solved
         if redo.any():
-            full = g.update(f[redo], phi[redo], "full")
+            full = g.update(f[redo], phi[redo], "full", start)
             out = jax.tree.map(lambda a, b: _put(a, redo, b), out, full)
         return _record(out, np.asarray(f), redo)
 
