@@ -8,6 +8,7 @@ which case only the shape checks run (the value checks need concrete numbers).
 
 from __future__ import annotations
 
+import csv
 import warnings
 from collections.abc import Sequence
 
@@ -135,6 +136,27 @@ class Sensors(eqx.Module):
         directions = np.zeros((len(codes), 3))
         directions[np.arange(len(codes)), (np.abs(codes) - 1) % 3] = np.sign(codes)
         return cls(nodes, directions, np.abs(codes) > 3)
+
+    @classmethod
+    def read_csv(cls, path) -> Sensors:
+        """Sensors from a CSV file with the columns ``label,node,component`` (component:
+        direction code as in :meth:`from_components`); a bad row names file and line."""
+        with open(path, newline="") as f:
+            reader = csv.DictReader(f)
+            missing = {"node", "component"} - set(reader.fieldnames or ())
+            if missing:
+                raise ValueError(f"{path}: missing columns {sorted(missing)} (need label,node,component)")
+            nodes, codes = [], []
+            for row in reader:
+                try:
+                    nodes.append(int(row["node"]))
+                    codes.append(int(row["component"]))
+                except (TypeError, ValueError):
+                    raise ValueError(f"{path}, line {reader.line_num}: node and component must be integers, "
+                                     f"got {row['node']!r}, {row['component']!r}") from None
+        if not nodes:
+            raise ValueError(f"{path}: no sensors")
+        return cls.from_components(nodes, codes)
 
     @classmethod
     def from_vectors(cls, nodes: Sequence[int], directions, rotational=None) -> Sensors:

@@ -242,3 +242,17 @@ def test_nearest_grid_mapping_reports_distances(model):
     observation_matrix(model, sensors, nearest=True, sensor_xyz=xyz, tol=1e-2)  # within tol: no warning
     with pytest.raises(ValueError, match="nearest=True needs sensor_xyz"):
         observation_matrix(model, sensors, nearest=True)
+
+
+def test_sensors_read_csv(tmp_path):
+    good = tmp_path / "s.csv"
+    good.write_text("label,node,component\nA,12,3\nB,14,-2\n")
+    s = Sensors.read_csv(good)
+    assert list(s.nodes) == [12, 14] and s.directions[1].tolist() == [0.0, -1.0, 0.0]
+    bad = tmp_path / "bad.csv"
+    bad.write_text("label,node,component\nA,12,3\nB,1x,2\n")
+    with pytest.raises(ValueError, match=r"bad\.csv, line 3"):
+        Sensors.read_csv(bad)
+    (tmp_path / "cols.csv").write_text("label,grid\nA,1\n")
+    with pytest.raises(ValueError, match="missing columns"):
+        Sensors.read_csv(tmp_path / "cols.csv")

@@ -11,7 +11,6 @@ written as a universal file.
 
 from __future__ import annotations
 
-import csv
 from importlib import resources
 from pathlib import Path
 
@@ -37,9 +36,7 @@ def demo_case(directory: Path, seed: int = 2026) -> tuple[Path, Path]:
     data = resources.files("updating") / "data"
     model_path = directory / "garteur.bdf"
     model_path.write_text((data / "garteur.bdf").read_text())
-    with (data / "garteur_sensors.csv").open() as f:
-        rows = list(csv.DictReader(f))
-    sensors = Sensors.from_components([int(r["node"]) for r in rows], [int(r["component"]) for r in rows])
+    sensors = Sensors.read_csv(data / "garteur_sensors.csv")
     model = jaxfem.build_model(read_bdf(model_path))
     truth = jaxfem.correct(model, [model.element_ids(pids=[1])], jnp.array([0.06]))
     ref = joint_reference(model, (6001,), [501])

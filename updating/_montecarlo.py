@@ -28,7 +28,6 @@ masked by sampling noise; each cell's statistics stay those of independent draws
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import hashlib
 import json
@@ -485,9 +484,7 @@ class Runner:
         self.reference = reference
         self.initial = jaxfem.correct(reference, [reference.element_ids(pids=list(study.error_pids))],
                                       jnp.array([study.error_alpha]))
-        with open(study.sensors) as f:
-            rows_ = list(csv.DictReader(f))
-        self.sensors = Sensors.from_components([int(r["node"]) for r in rows_], [int(r["component"]) for r in rows_])
+        self.sensors = Sensors.read_csv(study.sensors)
         self._groups: dict[int, _Group] = {}
 
     def group(self, n: int) -> _Group:
