@@ -18,11 +18,3 @@ jax.config.update("jax_numpy_dtype_promotion", "strict")
 def key():
     return jax.random.key(0)
 
-
-# Modules whose tests each take minutes (compilation): collected first, so that
-# pytest-xdist does not leave one worker alone with them at the end of the run.
-_SLOW = ("test_diagnose.py", "test_cli_diagnose.py", "test_montecarlo.py", "test_ray.py", "test_cli_montecarlo.py")
-
-
-def pytest_collection_modifyitems(config, items):
-    items.sort(key=lambda item: item.path.name not in _SLOW)
