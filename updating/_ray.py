@@ -15,6 +15,7 @@ from __future__ import annotations
 import collections
 import os
 import tempfile
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 
@@ -155,7 +156,10 @@ def montecarlo_ray(study: Study, *, address: str | None = None, out: str | Path 
         raise ValueError("num_cpus and workers must be at least 1, max_retries at least 0")
     connected = not ray.is_initialized()
     if connected:
-        ray.init(address=address)
+        with warnings.catch_warnings():
+            # Ray starts its processes by fork + exec: no JAX thread is shared with them.
+            warnings.filterwarnings("ignore", r"os\.fork\(\) was called", RuntimeWarning)
+            ray.init(address=address)
     try:
         workers = workers or max(1, int(ray.cluster_resources().get("CPU", 0)) // num_cpus)
         pool = _Pool(ray, study, runner_factory, num_cpus, workers, max_retries)
