@@ -95,7 +95,7 @@ def subspace(K, M, start: Float[Array, "n q"], n_modes: int, *, shift: float = 0
         raise ValueError(f"need 1 ≤ n_modes < q basis vectors, got n_modes = {n_modes}, q = {q}")
     K, M, start = jax.lax.stop_gradient((K, M, start))
     sigma = jnp.asarray(shift, dtype=start.dtype)
-    factor = _lapack.cholesky(K.todense() - sigma * M.todense())
+    factor = _lapack.cholesky(K.todense() - sigma * M.todense() if shift else K.todense())
     mu, V, MV = _rayleigh_ritz(K, M, start / jnp.linalg.norm(start, axis=0))
 
     def test(V, MV, mu):

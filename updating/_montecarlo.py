@@ -9,13 +9,14 @@ errors of one category and magnitude (Table 4.7) to the first n modes
     absolute   φ̃ = φ + δ,        δ ~ U(−a, a)·max|φ_n| per component of mode n
     frequency  f̃ = f (1 + δ),    δ ~ N(0, σ²) per mode
 
-and is updated from the initial model: in-loop masked pairing and the Optimistix
-Levenberg–Marquardt loop of :func:`updating.update` (same residual, weights, stopping
-rule), written as one jitted function of the measured data, vmapped over the samples and
-sharded over the JAX devices. Its eigenproblems are solved by subspace iteration
-(:func:`jaxfem.subspace`) warm-started from the initial model's modes and then from the
-last accepted iterate; a sample whose eigen solve did not converge is redone with full
-solves (counted). The eigenvalue weights (§5.2.4) are those of the error-free data.
+and is updated: in-loop masked pairing and the Optimistix loop of :func:`updating.update`
+(same residual, weights, stopping rule), written as one jitted function of the measured
+data; the sample axis is sharded over the JAX devices (``shard_map``) and run in sequence
+on each. Its eigenproblems are solved by subspace iteration (:func:`jaxfem.subspace`)
+warm-started from the Ritz basis of the error-free update (where every noisy sample
+starts) and then from the last iterate; a sample whose eigen solve did not converge is
+redone with full dense solves (:func:`jaxfem.dense_modes`, counted). The eigenvalue
+weights (§5.2.4) are those of the error-free data.
 
 Statistics relative to the same update without measurement error (δ = 0):
 Δα = α(δ)/α(0) (eq. 4.4), Δf_n (eq. 4.5) and ΔMAC_n (eq. 4.6), per category, magnitude
