@@ -16,6 +16,7 @@ from ._modes import modes as modes
 from ._subspace import Subspace as Subspace
 from ._subspace import dense_modes as dense_modes
 from ._subspace import ritz_modes as ritz_modes
+from ._subspace import shifted_inverse as shifted_inverse
 from ._subspace import subspace as subspace
 from ._model import correct as correct
 from ._model import partition as partition

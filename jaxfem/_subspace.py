@@ -5,13 +5,18 @@ perturbations of one reference: a full LAPACK solve (all n modes, O(n³) with a 
 constant) throws that away. :func:`subspace` starts from a basis of q ≥ m vectors close
 to the wanted modes — the reference modes, or the previous iterate's — and repeats
 
-    Y = (K − σM)⁻¹ M V                     inverse iteration on the block (one Cholesky)
+    Y = V − S (K V − M V Μ)                 inverse iteration on the block
     K_r = YᵀKY, M_r = YᵀMY, K_r Q = M_r Q Μ  Rayleigh–Ritz,  V = Y Q
 
-until every wanted Ritz vector passes the inverse-iteration test
-‖(μ_r − σ)(K − σM)⁻¹ M v_r − v_r‖ ≤ tol ‖v_r‖; mode r converges at the rate
-(λ_r − σ)/(λ_{q+1} − σ) per sweep. It carries no derivative: :func:`ritz_modes` picks
-converged modes from the result and differentiates them exactly.
+until every wanted Ritz vector passes the test ‖S r_r‖ ≤ tol ‖v_r‖ (r_r = K v_r − μ_r M v_r).
+With S = (K − σM)⁻¹ (one Cholesky factorisation per solve) the first line is inverse
+iteration, Y = S M V (Μ − σ), and mode r converges at the rate (λ_r − σ)/(λ_{q+1} − σ)
+per sweep. With a fixed S ≈ (K − σM)⁻¹ of a nearby model (:func:`shifted_inverse`,
+computed once for a whole batch of perturbed models) it is preconditioned inverse
+iteration (Knyazev & Neymeyr 2003): no factorisation, every sweep is matrix products,
+and the rate grows by about ‖I − S(K − σM)‖ — small for the perturbations of one study.
+It carries no derivative: :func:`ritz_modes` picks converged modes from the result and
+differentiates them exactly.
 
 Derivative of a converged mode r (φ mass-normalised, g_r = (dK − λ_r dM) φ_r):
 
@@ -21,9 +26,9 @@ Derivative of a converged mode r (φ mass-normalised, g_r = (dK − λ_r dM) φ_
 with the sum over the m converged modes and z_r, M-orthogonal to them, the exact rest of
 the modal expansion: (K − λ_r M) z_r = b_r, b_r = h_r − M Φ_m Φ_mᵀ h_r,
 h_r = −g_r + dλ_r M φ_r. It is solved by preconditioned Richardson iteration with
-B⁻¹ = U (Μ_u − λ_r)⁻¹ Uᵀ + P (K − σM)⁻¹ Pᵀ (U: the unconverged Ritz vectors, P: the
-projector M-orthogonal to the whole basis), whose error falls by (λ_r − σ)/(λ_{q+1} − σ)
-per sweep — the same factorisation as the forward solve, no new one. Clusters of nearly
+B⁻¹ = U (Μ_u − λ_r)⁻¹ Uᵀ + P S Pᵀ (U: the unconverged Ritz vectors, P: the
+projector M-orthogonal to the whole basis), whose error falls by about (λ_r − σ)/(λ_{q+1} − σ)
+per sweep — the forward solve's S, no new factorisation. Clusters of nearly
 equal eigenvalues are handled as in :func:`jaxfem.eigh` (no rotation inside a cluster,
 dλ the cluster mean).
 """
@@ -49,41 +54,64 @@ from ._model import Opaque
 
 class Subspace(eqx.Module):
     """Result of :func:`subspace`: Ritz values ``lam`` (q,) ascending in (rad/s)², the
-    M-orthonormal Ritz vectors ``basis`` (n, q) — the warm start of the next solve —, the
-    Cholesky factor ``factor`` of K − σM, ``converged`` (all m wanted modes
-    passed the test), ``residual`` (the largest test value), ``sweeps`` (inverse
-    iterations done) and ``n_modes`` = m."""
+    M-orthonormal Ritz vectors ``basis`` (n, q) — the warm start of the next solve —,
+    the inverse S it used: ``solver`` is the Cholesky factor of K − σM (``exact``) or the
+    fixed preconditioner, ``converged`` (all m wanted modes passed the test),
+    ``residual`` (the largest test value), ``sweeps`` (inverse iterations done) and
+    ``n_modes`` = m."""
 
     lam: Float[Array, " q"]
     basis: Float[Array, "n q"]
-    factor: Float[Array, "n n"]
+    solver: Float[Array, "n n"]
     converged: Bool[Array, ""]
     residual: Float[Array, ""]
     sweeps: Int[Array, ""]
     n_modes: int = eqx.field(static=True)
+    exact: bool = eqx.field(static=True, default=True)
+
+    def solve(self, r: Float[Array, "n k"]) -> Float[Array, "n k"]:
+        """S r: (K − σM)⁻¹ r from the factor, or the preconditioner's approximation."""
+        return _solve(self.solver, self.exact, r)
+
+
+def _solve(solver, exact: bool, r):
+    return _lapack.cho_solve(solver, r) if exact else solver @ r
 
 
 def _rayleigh_ritz(K, M, Y):
-    """Ritz pairs of (K, M) on span Y: values ascending, vectors M-orthonormal; and M V."""
+    """Ritz pairs of (K, M) on span Y: values ascending, vectors V M-orthonormal; and the
+    residuals K V − M V Μ."""
     KY, MY = K.matmul(Y), M.matmul(Y)
     kr, mr = Y.T @ KY, Y.T @ MY
     lr = _lapack.cholesky(0.5 * (mr + mr.T))
     a = _lapack.solve_lower(lr, _lapack.solve_lower(lr, kr).T)
     mu, z = _lapack.eigh(0.5 * (a + a.T))
     q = _lapack.solve_upper(lr.T, z)
-    return mu, Y @ q, MY @ q
+    return mu, Y @ q, KY @ q - (MY @ q) * mu
+
+
+def shifted_inverse(K, M, *, shift: float = 0.0) -> Float[Array, "n n"]:
+    """(K − σM)⁻¹ as a dense matrix: the fixed preconditioner of :func:`subspace` for
+    models near (K, M) (one factorisation, n right-hand sides)."""
+    K, M = _operator("K", K), _operator("M", M)
+    Kd = K.todense()
+    factor = _lapack.cholesky(Kd - jnp.asarray(shift, Kd.dtype) * M.todense() if shift else Kd)
+    inverse = _lapack.cho_solve(factor, jnp.eye(Kd.shape[0], dtype=Kd.dtype))
+    return 0.5 * (inverse + inverse.T)
 
 
 def subspace(K, M, start: Float[Array, "n q"], n_modes: int, *, shift: float = 0.0,
-             tol: float = 1e-9, max_sweeps: int = 40) -> Subspace:
+             tol: float = 1e-9, max_sweeps: int = 40, preconditioner: Float[Array, "n n"] | None = None
+             ) -> Subspace:
     """Lowest ``n_modes`` modes of ``K φ = λ M φ`` by subspace iteration from ``start``.
 
     **Arguments:** K (positive definite after the shift), M (positive definite), as arrays
     or :class:`jaxfem.ElementMatrix`; ``start``: q > n_modes vectors near the wanted modes
     (e.g. the reference modes, or ``basis`` of a previous solve); ``shift`` σ below the
-    lowest eigenvalue (negative for a free structure); ``tol``: inverse-iteration test on
-    each wanted mode; ``max_sweeps``: the cap — the caller falls back to a full solve when
-    ``converged`` is False.
+    lowest eigenvalue (negative for a free structure); ``tol``: test on each wanted mode;
+    ``max_sweeps``: the cap — the caller falls back to a full solve when ``converged`` is
+    False; ``preconditioner``: a fixed S ≈ (K − σM)⁻¹ (:func:`shifted_inverse` of a nearby
+    model) in place of a factorisation of K − σM.
 
     **Returns:** :class:`Subspace`; no derivative flows through it (see :func:`ritz_modes`).
     """
@@ -93,15 +121,17 @@ def subspace(K, M, start: Float[Array, "n q"], n_modes: int, *, shift: float = 0
     q = start.shape[1]
     if not 1 <= n_modes < q:
         raise ValueError(f"need 1 ≤ n_modes < q basis vectors, got n_modes = {n_modes}, q = {q}")
-    K, M, start = jax.lax.stop_gradient((K, M, start))
-    sigma = jnp.asarray(shift, dtype=start.dtype)
-    factor = _lapack.cholesky(K.todense() - sigma * M.todense() if shift else K.todense())
-    mu, V, MV = _rayleigh_ritz(K, M, start / jnp.linalg.norm(start, axis=0))
-
-    def test(V, MV, mu):
-        Y = _lapack.cho_solve(factor, MV) * (mu - sigma)
-        err = jnp.linalg.norm(Y[:, :n_modes] - V[:, :n_modes], axis=0) / jnp.linalg.norm(V[:, :n_modes], axis=0)
-        return Y, jnp.max(err)
+    K, M, start, preconditioner = jax.lax.stop_gradient((K, M, start, preconditioner))
+    exact = preconditioner is None
+    if exact:
+        Kd = K.todense()
+        solver = _lapack.cholesky(Kd - jnp.asarray(shift, Kd.dtype) * M.todense() if shift else Kd)
+    else:
+        solver = preconditioner
+    def test(V, R):
+        step = _solve(solver, exact, R)
+        err = jnp.linalg.norm(step[:, :n_modes], axis=0) / jnp.linalg.norm(V[:, :n_modes], axis=0)
+        return V - step, jnp.max(err)
 
     def cond(carry):
         k, *_, err = carry
@@ -109,12 +139,13 @@ def subspace(K, M, start: Float[Array, "n q"], n_modes: int, *, shift: float = 0
 
     def body(carry):
         k, _, _, Y, _ = carry
-        mu, V, MV = _rayleigh_ritz(K, M, Y)
-        return (k + 1, mu, V, *test(V, MV, mu))
+        mu, V, R = _rayleigh_ritz(K, M, Y)
+        return (k + 1, mu, V, *test(V, R))
 
-    k, mu, V, _, err = jax.lax.while_loop(cond, body, (jnp.asarray(0), mu, V, *test(V, MV, mu)))
+    mu, V, R = _rayleigh_ritz(K, M, start / jnp.linalg.norm(start, axis=0))
+    k, mu, V, _, err = jax.lax.while_loop(cond, body, (jnp.asarray(0), mu, V, *test(V, R)))
     V = V * _signs(V)
-    return Subspace(mu, V, factor, err <= tol, err, k, n_modes)
+    return Subspace(mu, V, solver, err <= tol, err, k, n_modes, exact)
 
 
 def dense_modes(K, M, n_modes: int, *, shift: float = 0.0) -> Subspace:
@@ -137,7 +168,8 @@ def dense_modes(K, M, n_modes: int, *, shift: float = 0.0) -> Subspace:
     nu, y = nu[::-1], y[:, ::-1]
     V = _lapack.solve_upper(factor.T, y) / jnp.sqrt(nu)
     one = jnp.asarray(True)
-    return Subspace(shift + 1.0 / nu, V * _signs(V), factor, one, jnp.zeros((), Md.dtype), jnp.asarray(0), n_modes)
+    return Subspace(shift + 1.0 / nu, V * _signs(V), factor, one, jnp.zeros((), Md.dtype), jnp.asarray(0), n_modes,
+                    True)
 
 
 def ritz_modes(K, M, solution: Subspace, index: Int[Array, " k"], *, rtol: float = DEGENERATE_RTOL,
@@ -191,12 +223,11 @@ def _ritz_jvp(primals, tangents, *, solution, index, structure, rtol, refine_tol
     # The rest z_r, M-orthogonal to the converged modes: (K − λ_r M) z_r = b_r.
     b = h - M.matmul(phi_m @ c)
     U, lam_u = V[:, m:], lam[m:]
-    factor = solution.factor
 
     def precondition(r):
         coarse = U @ ((U.T @ r) / (lam_u[:, None] - lam_r[None, :]))
         rp = r - M.matmul(V @ (V.T @ r))
-        x = _lapack.cho_solve(factor, rp)
+        x = solution.solve(rp)
         return coarse + x - V @ (V.T @ M.matmul(x))
 
     def operator(z):

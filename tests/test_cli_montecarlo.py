@@ -149,7 +149,8 @@ def test_plots_draw_one_line_per_number_of_modes_and_count_failures(tmp_path, mo
         f_e = np.tile(np.linspace(10.0, 50.0, n), (rows, 1))
         return {"alpha": np.array([0.2, 0.0, 0.0]) + noise * rng.normal(size=(rows, 3)), "f_e": f_e,
                 "f_a": f_e * (1 + noise * rng.normal(size=(rows, n))), "mac": 0.99 - noise * rng.random((rows, n)),
-                "iterations": np.full(rows, 5), "status": np.zeros(rows, np.int64), "fallback": np.zeros(rows, bool)}
+                "iterations": np.full(rows, 5), "status": np.zeros(rows, np.int64), "fallback": np.zeros(rows, bool),
+                "refreshes": np.zeros(rows, np.int64)}
 
     samples = {n: record(n, 6, 0.01) for n in study.n_modes}
     samples[2]["status"][:3] = 1  # the first cell of n = 2 failed entirely: no statistics

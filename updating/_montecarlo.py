@@ -226,6 +226,7 @@ class _Aux(eqx.Module):
     ev: object  # residuals.Evaluation at the evaluated point
     basis: jax.Array  # Ritz basis there (the warm start of the next solve)
     solved: jax.Array  # the eigen solve converged
+    refreshed: jax.Array  # it needed a fresh preconditioner
 
 
 @dataclasses.dataclass(frozen=True)
@@ -241,12 +242,20 @@ def _residual(theta, args, settings: _Settings):
     """ε(θ) of :func:`updating.residuals` with the modes of a warm-started subspace solve
     or of a full dense solve (:func:`jaxfem.dense_modes`): pair first, then differentiate
     the paired modes (:func:`jaxfem.ritz_modes`)."""
-    problem, warm = args
+    problem, warm, inverse = args
     K, M = jaxfem.assemble(problem.model(theta))
     if settings.eigensolver == "full":
         sol = jaxfem.dense_modes(K, M, problem.n_model, shift=settings.shift)
     else:
-        sol = jaxfem.subspace(K, M, warm, problem.n_model, shift=settings.shift)
+        Ks, Ms = jax.lax.stop_gradient((K, M))  # the solve carries no derivative (ritz_modes does)
+        solve = lambda start, inverse: jaxfem.subspace(Ks, Ms, start, problem.n_model, shift=settings.shift,
+                                                       preconditioner=inverse)
+        sol = solve(warm, inverse)
+        # Too far from the preconditioner's model (a fit running away): go on from the
+        # basis reached with (K − σM)⁻¹ of this model; the next evaluation tries the fixed one again.
+        refreshed = ~sol.converged
+        sol = jax.lax.cond(refreshed, lambda: solve(sol.basis, jaxfem.shifted_inverse(Ks, Ms, shift=settings.shift)),
+                           lambda: sol)
     phi_s = problem.C @ sol.basis[:, : problem.n_model]
     lam = sol.lam[: problem.n_model]
     index, paired = pair(lam, phi_s, problem)
@@ -254,7 +263,8 @@ def _residual(theta, args, settings: _Settings):
     lam_a, phi_a = jaxfem.ritz_modes(K, M, sol, safe)
     ev = paired_evaluation(lam_a, problem.C @ phi_a, index, paired, lam, phi_s, problem)
     basis = warm if settings.eigensolver == "full" else sol.basis
-    return rows(theta, problem, ev), _Aux(ev, basis, sol.converged)
+    refreshed = jnp.asarray(False) if settings.eigensolver == "full" else refreshed
+    return rows(theta, problem, ev), _Aux(ev, basis, sol.converged, refreshed)
 
 
 class _Outcome(eqx.Module):
@@ -263,6 +273,7 @@ class _Outcome(eqx.Module):
     converged: jax.Array
     change: jax.Array  # largest factor change of the last accepted step
     solved: jax.Array  # every accepted iterate's eigen solve converged
+    refreshes: jax.Array  # evaluations that needed a fresh preconditioner
     paired: jax.Array
     lam_a: jax.Array
     mac: jax.Array
@@ -315,30 +326,38 @@ class _QR(lx.QR):
             lx.RESULTS.successful, {}
 
 
-def _update_one(lam_e, phi_e, valid, problem: Problem, theta0, warm, settings: _Settings) -> _Outcome:
+class _Start(eqx.Module):
+    """Where updates start: factors θ, the Ritz basis there (the first warm start) and
+    the fixed preconditioner (K(θ) − σM)⁻¹ of every subspace solve (:func:`jaxfem.shifted_inverse`)."""
+
+    theta: jax.Array
+    basis: jax.Array
+    inverse: jax.Array
+
+
+def _update_one(lam_e, phi_e, valid, problem: Problem, start: _Start, settings: _Settings) -> _Outcome:
     """The updating loop of :func:`updating.update` for one sample, as a jittable function:
     Optimistix LM (or GN) stepped in a ``while_loop``; convergence when an accepted step
     changes no factor by more than the tolerance; at most ``max_iterations`` accepted steps.
-    Starts from θ0 with the Ritz basis ``warm``; a padding sample (``valid`` False)
-    takes no step."""
+    Starts from ``start``; a padding sample (``valid`` False) takes no step."""
     problem = eqx.tree_at(lambda p: (p.lam_e, p.phi_e), problem, (lam_e, phi_e))
     solver = (optx.GaussNewton if settings.gauss_newton else optx.LevenbergMarquardt)(
         rtol=1e-12, atol=1e-12, linear_solver=_QR())
     fn = lambda t, a: _with_jacobian(t, a, settings)
-    theta = theta0
+    theta, inverse = start.theta, start.inverse
     # Plain shapes: inside shard_map eval_shape attaches the manual mesh, which lineax
     # would then find missing on the residual ("pytree does not match out_structure").
     f_struct, aux_struct = jax.tree.map(lambda s: jax.ShapeDtypeStruct(s.shape, s.dtype),
-                                        jax.eval_shape(fn, theta, (problem, warm)))
+                                        jax.eval_shape(fn, theta, (problem, start.basis, inverse)))
     options = {"jac": "fwd"}
-    state = solver.init(fn, theta, (problem, warm), options, f_struct, aux_struct, frozenset())
+    state = solver.init(fn, theta, (problem, start.basis, inverse), options, f_struct, aux_struct, frozenset())
     state, static = eqx.partition(state, eqx.is_array)  # the state holds a jaxpr: carry only arrays
 
     def cond(c):
         return ~c["done"]
 
     def body(c):
-        new, state, _ = solver.step(fn, c["theta"], (problem, c["warm"]), options,
+        new, state, _ = solver.step(fn, c["theta"], (problem, c["warm"], inverse), options,
                                     eqx.combine(c["state"], static), frozenset())
         state = eqx.filter(state, eqx.is_array)
         moved = jnp.any(new != c["theta"])
@@ -352,13 +371,16 @@ def _update_one(lam_e, phi_e, valid, problem: Problem, theta0, warm, settings: _
             | ~jnp.all(jnp.isfinite(new))
         return {"theta": new, "state": state, "warm": state.aux.basis, "accepted": accepted, "steps": steps,
                 "converged": converged, "change": jnp.where(moved, change, c["change"]),
-                "solved": c["solved"] & state.aux.solved, "done": done}
+                "solved": c["solved"] & state.aux.solved, "refreshes": c["refreshes"] + state.aux.refreshed.astype(jnp.int32),
+                "done": done}
 
-    c0 = {"theta": theta, "state": state, "warm": warm, "accepted": jnp.asarray(0), "steps": jnp.asarray(0),
-          "converged": jnp.asarray(False), "change": jnp.asarray(jnp.inf, theta.dtype), "solved": jnp.asarray(True), "done": ~valid}
+    c0 = {"theta": theta, "state": state, "warm": start.basis, "accepted": jnp.asarray(0), "steps": jnp.asarray(0),
+          "converged": jnp.asarray(False), "change": jnp.asarray(jnp.inf, theta.dtype), "solved": jnp.asarray(True),
+          "refreshes": jnp.asarray(0), "done": ~valid}
     c = jax.lax.while_loop(cond, body, c0)
     ev = eqx.combine(c["state"], static).aux.ev
-    return _Outcome(c["theta"], c["accepted"], c["converged"], c["change"], c["solved"], ev.paired, ev.lam_a,
+    return _Outcome(c["theta"], c["accepted"], c["converged"], c["change"], c["solved"], c["refreshes"], ev.paired,
+                    ev.lam_a,
                     ev.mac)
 
 
@@ -391,21 +413,21 @@ class _Group:
         q = min(n_free, max(2 * n_model, n_model + 8))
         lam0, basis = jaxfem.eigh(*jaxfem.assemble(initial), q)
         rigid = float(lam0[0]) < 1e-6 * float(lam0[n_model - 1])
-        # Where every update starts: (θ, Ritz basis) of the initial model, and for the
-        # noisy samples those of the error-free update (:meth:`sample_start`).
-        self.origin = (jnp.zeros(len(self.problem.parameterisation.parameters)), basis)
+        shift = -0.01 * float(lam0[n_model - 1]) if rigid else 0.0
+        self.settings = {kind: _Settings(kind, shift, opts.max_iterations, opts.tolerance,
+                                         opts.solver == "gauss-newton") for kind in ("subspace", "full")}
+        # Where every update starts: the initial model, and for the noisy samples the
+        # error-free update (:meth:`sample_start`).
+        self.origin = _Start(jnp.zeros(len(self.problem.parameterisation.parameters)), basis,
+                             jaxfem.shifted_inverse(*jaxfem.assemble(initial), shift=shift))
         self._sample_start = None
         self._reference: dict[str, _Outcome] = {}
         self.devices = devices
-        self.settings = {
-            kind: _Settings(kind, -0.01 * float(lam0[n_model - 1]) if rigid else 0.0, opts.max_iterations,
-                            opts.tolerance, opts.solver == "gauss-newton")
-            for kind in ("subspace", "full")}
         self.n = n
         mesh = jax.sharding.Mesh(np.array(devices), ("samples",))
         # Samples per compiled call: a whole number per device, about a chunk.
         self.batch = len(devices) * -(-study.chunk_size // len(devices))
-        self._batch = {k: Compiled(lambda l, p, v, prob, t, w, s=s: _sharded(l, p, v, prob, t, w, s, mesh))
+        self._batch = {k: Compiled(lambda l, p, v, prob, start, s=s: _sharded(l, p, v, prob, start, s, mesh))
                        for k, s in self.settings.items()}
         self._perturb = Compiled(jax.vmap(_perturb, in_axes=(0, 0, 0, None, None)))
 
@@ -426,10 +448,10 @@ class _Group:
         return self._reference[kind]
 
     def sample_start(self, kind: str):
-        """Where the noisy samples start: θ and the Ritz basis of the error-free update
-        (each sample is a small perturbation of it: about half the iterations of a start
-        from the initial model, same converged factors), or the initial model if that
-        update failed."""
+        """Where the noisy samples start: θ, the Ritz basis and the preconditioner of the
+        error-free update (each sample is a small perturbation of it: about half the
+        iterations of a start from the initial model, same converged factors), or the
+        initial model if that update failed."""
         if self._sample_start is None:
             ref = self.reference(kind)
             self._sample_start = self.origin
@@ -437,13 +459,13 @@ class _Group:
                 theta = jnp.asarray(ref.theta[0])
                 K, M = jaxfem.assemble(self.problem.model(theta))
                 settings = self.settings["subspace"]
-                sol = jaxfem.subspace(K, M, self.origin[1], self.problem.n_model, shift=settings.shift)
+                sol = jaxfem.subspace(K, M, self.origin.basis, self.problem.n_model, shift=settings.shift)
                 if bool(sol.converged):
-                    self._sample_start = (theta, sol.basis)
+                    self._sample_start = _Start(theta, sol.basis, jaxfem.shifted_inverse(K, M, shift=settings.shift))
         return self._sample_start
 
-    def update(self, f, phi, kind: str, start) -> _Outcome:
-        """Update the samples (f, φ) from ``start`` = (θ, Ritz basis), sharded over the
+    def update(self, f, phi, kind: str, start: _Start) -> _Outcome:
+        """Update the samples (f, φ) from ``start``, sharded over the
         devices. Batches are padded to whole multiples of ``batch`` samples (padding takes
         no step), so every batch size runs the one compiled program."""
         b = f.shape[0]
@@ -451,22 +473,22 @@ class _Group:
         lam = (2 * jnp.pi * f) ** 2
         lam, phi = (jnp.concatenate([x, jnp.repeat(x[-1:], pad, axis=0)]) for x in (lam, phi))
         valid = jnp.arange(b + pad) < b
-        out = [self._batch[kind](*(x[i:i + self.batch] for x in (lam, phi, valid)), self.problem, *start)
+        out = [self._batch[kind](*(x[i:i + self.batch] for x in (lam, phi, valid)), self.problem, start)
                for i in range(0, b + pad, self.batch)]
         return jax.tree.map(lambda *x: np.concatenate([np.asarray(v) for v in x])[:b], *out)
 
 
-def _sharded(lam, phi, valid, problem, theta0, warm, settings: _Settings, mesh) -> _Outcome:
+def _sharded(lam, phi, valid, problem, start, settings: _Settings, mesh) -> _Outcome:
     """:func:`_update_one` over the samples: the sample axis sharded over the mesh's
     devices (``shard_map``), in sequence on each device. Measured on XLA-CPU (2 cores,
     tree, 10 modes): a ``vmap`` over 4 samples cost 7.3 s per sample against 1.4 s in
     sequence, and vmapped LAPACK calls inside the loop can deadlock the CPU thread pool
     (``jaxfem._lapack``)."""
-    shared, static = eqx.partition((problem, theta0, warm), eqx.is_array)
+    shared, static = eqx.partition((problem, start), eqx.is_array)
 
     def local(lam, phi, valid, shared):
-        problem, theta0, warm = eqx.combine(shared, static)
-        return jax.lax.map(lambda x: _update_one(*x, problem, theta0, warm, settings), (lam, phi, valid))
+        problem, start = eqx.combine(shared, static)
+        return jax.lax.map(lambda x: _update_one(*x, problem, start, settings), (lam, phi, valid))
 
     P = jax.sharding.PartitionSpec
     # check_vma=False: the loop carries start replicated (θ0) and become per-sample.
@@ -527,7 +549,7 @@ def _record(out: _Outcome, f_e: np.ndarray, fallback: np.ndarray) -> dict:
     return {"alpha": np.expm1(theta), "f_e": f_e, "f_a": f_a, "mac": np.where(out.paired, out.mac, np.nan),
             "iterations": np.asarray(out.iterations), "change": np.asarray(out.change),
             "status": status.astype(np.int64),
-            "fallback": np.asarray(fallback, bool)}
+            "fallback": np.asarray(fallback, bool), "refreshes": np.asarray(out.refreshes)}
 
 
 # --------------------------------------------------------------------------- the study
@@ -538,7 +560,8 @@ class MonteCarloResult:
     """Samples and statistics of a study. ``samples[n]``: arrays over the samples of the
     n-mode group (cell-major: ``cells[i]`` owns rows i·samples … (i+1)·samples − 1):
     ``alpha`` (N, p), ``f_e``/``f_a``/``mac`` (N, n), ``iterations``, ``status`` (index in
-    ``STATUS``), ``fallback``; ``reference[n]``: the same for the error-free update."""
+    ``STATUS``), ``fallback`` (redone with full solves), ``refreshes`` (evaluations that
+    needed a fresh preconditioner); ``reference[n]``: the same for the error-free update."""
 
     study: Study
     names: list[str]
@@ -557,6 +580,11 @@ class MonteCarloResult:
     @property
     def fallbacks(self) -> int:
         return int(sum(d["fallback"].sum() for d in self.samples.values()))
+
+    @property
+    def refreshes(self) -> int:
+        """Residual evaluations whose subspace solve needed a fresh preconditioner."""
+        return int(sum(d["refreshes"].sum() for d in self.samples.values()))
 
     def statistics(self) -> list[dict]:
         """Per n, category and magnitude over the successful samples: mean, standard
@@ -582,6 +610,7 @@ class MonteCarloResult:
                             "succeeded": int(ok.sum()),
                             "failed": {STATUS[k]: int(np.sum(d["status"][rows_] == k)) for k in range(1, len(STATUS))},
                             "fallback": int(d["fallback"][rows_].sum()),
+                            "refreshes": int(d["refreshes"][rows_].sum()),
                             "delta_alpha": dict(zip(self.names, _per_column(stats(dalpha)))),
                             "delta_alpha_is_ratio": dict(zip(self.names, ratio.tolist())),
                             "delta_f": stats(df), "delta_mac": stats(dmac)})
@@ -590,7 +619,7 @@ class MonteCarloResult:
     def to_json(self) -> dict:
         return {"study": self.study.to_dict(), "parameters": self.names, "seconds": self.seconds,
                 "samples": int(sum(len(d["status"]) for d in self.samples.values())),
-                "failures": self.failures, "fallbacks": self.fallbacks,
+                "failures": self.failures, "fallbacks": self.fallbacks, "refreshes": self.refreshes,
                 "reference": {str(n): {"alpha": r["alpha"][0].tolist(), "f_a": r["f_a"][0].tolist(),
                                        "f_e": r["f_e"][0].tolist(), "mac": r["mac"][0].tolist()}
                               for n, r in self.reference.items()},
