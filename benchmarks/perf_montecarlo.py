@@ -88,7 +88,7 @@ def main(argv=None) -> dict:
         runner = Runner(study, devices=jax.devices()[:d])
         # Once per group: compile, the error-free update and its preconditioner.
         _, compile_s = _timed(lambda r=runner: (r.reference_update(n), r.group(n).sample_start("subspace"),
-                                                r.group(n).data(study, 0, 1)))
+                                                r.group(n).data(study, 0, S)))
         got, t = _timed(lambda r=runner: r.chunk(n, 0, S))
         both = (got["status"] == 0) & (same["status"] == 0)
         diff = float(np.max(np.abs(got["alpha"][both] - same["alpha"][both]))) if both.any() else float("nan")
@@ -97,12 +97,12 @@ def main(argv=None) -> dict:
         out[f"batched_{d}_devices"] = {
             "seconds": t, "samples_per_s": S / t, "ratio_to_loop": t_loop / t, "ratio_to_loop_same_start": t_same / t,
             "setup_s": compile_s, "failed": int(np.sum(got["status"] > 0)), "fallbacks": int(got["fallback"].sum()),
-            "iterations": float(got["iterations"].mean()),
+            "refreshes": int(got["refreshes"].sum()), "iterations": float(got["iterations"].mean()),
             "max_alpha_difference_to_full": diff, "compared_samples": int(both.sum()),
             "max_alpha_difference_to_plain_loop": diff_plain, "compared_plain": int(plain.sum())}
         print(f"batched, {d} device(s): {S / t:7.3f} samples/s  ×{t_loop / t:5.2f} the loop, ×{t_same / t:5.2f} the "
               f"same-start loop (setup {compile_s:.1f} s, {out[f'batched_{d}_devices']['failed']} failed, "
-              f"{int(got['fallback'].sum())} fallbacks, {got['iterations'].mean():.1f} iterations; max |Δα| to full "
+              f"{int(got['fallback'].sum())} fallbacks, {int(got['refreshes'].sum())} refreshes, {got['iterations'].mean():.1f} iterations; max |Δα| to full "
               f"{diff:.2e} on {int(both.sum())}, to the plain loop {diff_plain:.2e} on {int(plain.sum())})")
     out["peak_rss_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"peak resident memory: {out['peak_rss_mib']:.0f} MiB")
