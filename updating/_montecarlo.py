@@ -11,11 +11,14 @@ errors of one category and magnitude (Table 4.7) to the first n modes
 
 and is updated: in-loop masked pairing and the Optimistix loop of :func:`updating.update`
 (same residual, weights, stopping rule), written as one jitted function of the measured
-data; the sample axis is sharded over the JAX devices (``shard_map``) and run in sequence
-on each. Its eigenproblems are solved by subspace iteration (:func:`jaxfem.subspace`)
-warm-started from the Ritz basis of the error-free update (where every noisy sample
-starts) and then from the last iterate; a sample whose eigen solve did not converge is
-redone with full dense solves (:func:`jaxfem.dense_modes`, counted). The eigenvalue
+data, vmapped over ``lockstep`` samples; the sample axis is sharded over the JAX devices
+(``shard_map``), the lockstep batches of a device run in sequence. Its eigenproblems are
+solved by subspace iteration (:func:`jaxfem.subspace`) warm-started from the Ritz basis
+of the error-free update (where every noisy sample starts) and then from the last
+iterate, preconditioned with the error-free update's (K − σM)⁻¹ (no factorisation per
+evaluation); a solve that does not converge with it (a fit running far away) is redone
+with a fresh one (counted, ``refreshes``), a sample whose solve still fails is redone with
+full dense solves (:func:`jaxfem.dense_modes`, counted, ``fallback``). The eigenvalue
 weights (§5.2.4) are those of the error-free data.
 
 Statistics relative to the same update without measurement error (δ = 0):
@@ -38,6 +41,7 @@ from importlib import resources
 from pathlib import Path
 
 import equinox as eqx
+import equinox.internal as eqxi
 import jax
 import jax.numpy as jnp
 import jax.scipy.linalg as jsl
@@ -45,6 +49,7 @@ import lineax as lx
 import numpy as np
 import optimistix as optx
 import tomllib
+from lineax._solver.misc import pack_structures
 
 import jaxfem
 from identification import ModalData, Sensors, observation_matrix
@@ -77,7 +82,10 @@ class Study:
     of modes used in the update; ``errors``: magnitudes per category (fractions,
     Table 4.7); ``samples`` per category and magnitude; ``seed``; ``chunk_size``: samples
     per batch (the unit of incremental results and of Ray tasks); ``eigensolver``:
-    ``subspace`` or ``full``.
+    ``subspace`` or ``full``; ``lockstep``: samples updated together under ``vmap`` on
+    each device — 1 (in sequence) on CPUs, where a batch waits for its slowest sample
+    (measured 1.9× slower per sample at 8 with mixed error magnitudes, equal at uniform
+    ones), larger on accelerators.
     """
 
     model: Path
@@ -91,6 +99,7 @@ class Study:
     seed: int = 0
     chunk_size: int = 64
     eigensolver: str = "subspace"
+    lockstep: int = 1
 
     def __post_init__(self):
         bad = [c for c, _ in self.errors if c not in CATEGORIES]
@@ -100,8 +109,8 @@ class Study:
             raise ValueError("every error category needs at least one magnitude")
         if any(not (0 <= m < 1) for _, mags in self.errors for m in mags):
             raise ValueError("error magnitudes are fractions in [0, 1), e.g. 0.05 for 5 %")
-        if self.samples < 1 or self.chunk_size < 1 or any(n < 1 for n in self.n_modes):
-            raise ValueError("samples, chunk_size and n_modes must be positive")
+        if self.samples < 1 or self.chunk_size < 1 or self.lockstep < 1 or any(n < 1 for n in self.n_modes):
+            raise ValueError("samples, chunk_size, lockstep and n_modes must be positive")
         if self.eigensolver not in ("subspace", "full"):
             raise ValueError(f"eigensolver {self.eigensolver!r}: subspace | full")
         if not self.error_alpha > -1:
@@ -123,7 +132,7 @@ class Study:
         return {"model": str(self.model), "sensors": str(self.sensors), "error_pids": list(self.error_pids),
                 "error_alpha": self.error_alpha, "n_modes": list(self.n_modes),
                 "errors": {c: list(m) for c, m in self.errors}, "samples": self.samples, "seed": self.seed,
-                "chunk_size": self.chunk_size, "eigensolver": self.eigensolver,
+                "chunk_size": self.chunk_size, "eigensolver": self.eigensolver, "lockstep": self.lockstep,
                 "parameters": [dataclasses.asdict(p) for p in self.parameters.parameters],
                 "options": dataclasses.asdict(self.parameters.options)}
 
@@ -144,6 +153,7 @@ class Study:
             samples = 100              # per category and magnitude
             seed = 0
             chunk_size = 64
+            lockstep = 1               # samples per vmap batch on each device
             [errors]                   # fractions; default Table 4.7
             relative = [0.01, 0.02, 0.05, 0.10, 0.20]
             [[parameter]]              # as for `jaxfem update`; default: the tree's substructures
@@ -166,7 +176,7 @@ class Study:
             raise ValueError(f"{where}: unknown top-level keys {sorted(unknown)}")
         s = dict(data.get("study", {}))
         allowed = {"model", "sensors", "modelling_error", "error_pids", "error_alpha", "n_modes", "samples",
-                   "seed", "chunk_size", "eigensolver"}
+                   "seed", "chunk_size", "eigensolver", "lockstep"}
         if set(s) - allowed:
             raise ValueError(f"{where}: [study] unknown keys {sorted(set(s) - allowed)}; allowed {sorted(allowed)}")
         data_dir = resources.files("updating") / "data"
@@ -236,6 +246,10 @@ class _Settings:
     max_iterations: int
     tolerance: float
     gauss_newton: bool
+    lockstep: int  # samples updated together under vmap on each device
+
+
+LOCKSTEP = "lockstep"  # vmap axis of the samples updated together
 
 
 def _residual(theta, args, settings: _Settings):
@@ -253,8 +267,10 @@ def _residual(theta, args, settings: _Settings):
         sol = solve(warm, inverse)
         # Too far from the preconditioner's model (a fit running away): go on from the
         # basis reached with (K − σM)⁻¹ of this model; the next evaluation tries the fixed one again.
+        # Decided for the whole lockstep batch, so that under vmap it stays a branch.
         refreshed = ~sol.converged
-        sol = jax.lax.cond(refreshed, lambda: solve(sol.basis, jaxfem.shifted_inverse(Ks, Ms, shift=settings.shift)),
+        sol = jax.lax.cond(jax.lax.psum(refreshed.astype(jnp.int32), LOCKSTEP) > 0,
+                           lambda: solve(sol.basis, jaxfem.shifted_inverse(Ks, Ms, shift=settings.shift)),
                            lambda: sol)
     phi_s = problem.C @ sol.basis[:, : problem.n_model]
     lam = sol.lam[: problem.n_model]
@@ -305,19 +321,35 @@ def _with_jacobian(theta, args, settings: _Settings):
     return _attach(theta, eps, jac), aux
 
 
+@jax.custom_batching.sequential_vmap
+def _householder(matrix):
+    h, taus = jnp.linalg.qr(matrix, mode="raw")
+    return h.mT, taus
+
+
+@jax.custom_batching.sequential_vmap
+def _householder_solve(a, taus, b):
+    n = a.shape[1]
+    return jsl.solve_triangular(a[:n], jax.lax.linalg.ormqr(a, taus, b[:, None], transpose=True)[:n, 0])
+
+
 class _QR(lx.QR):
     """``lineax.QR`` (Optimistix' choice for the damped least-squares step, thesis eq. 3.71)
-    for the overdetermined systems of the loop, without lineax' check that the residual's
-    structure equals the operator's: inside ``shard_map`` one of them carries the manual
-    mesh and the other not (lineax 0.1.1: "pytree does not match out_structure")."""
+    for the overdetermined systems of the loop, (i) without lineax' check that the
+    residual's structure equals the operator's: inside ``shard_map`` one of them carries
+    the manual mesh and the other not (lineax 0.1.1: "pytree does not match
+    out_structure"); (ii) with LAPACK kernels that loop over a ``vmap`` batch instead of
+    batching the call, which can deadlock XLA-CPU inside a batched loop (``jaxfem._lapack``)."""
+
+    def init(self, operator, options):
+        matrix = operator.as_matrix()
+        if matrix.shape[1] > matrix.shape[0]:
+            raise NotImplementedError("more parameters than residuals")
+        return _householder(matrix), eqxi.Static(False), pack_structures(operator)
 
     def compute(self, state, vector, options):
-        (h, taus), transpose, packed = state
-        if transpose.value:
-            raise NotImplementedError("more parameters than residuals")
-        b = jnp.concatenate([jnp.ravel(v) for v in jax.tree.leaves(vector)])
-        n = h.shape[1]
-        x = jsl.solve_triangular(h[:n], jax.lax.linalg.ormqr(h, taus, b[:, None], transpose=True)[:n, 0])
+        (a, taus), _, packed = state
+        x = _householder_solve(a, taus, jnp.concatenate([jnp.ravel(v) for v in jax.tree.leaves(vector)]))
         leaves, treedef = packed.value
         _, structure = jax.tree.unflatten(treedef, leaves)
         shapes = [s.shape for s in jax.tree.leaves(structure)]
@@ -415,7 +447,8 @@ class _Group:
         rigid = float(lam0[0]) < 1e-6 * float(lam0[n_model - 1])
         shift = -0.01 * float(lam0[n_model - 1]) if rigid else 0.0
         self.settings = {kind: _Settings(kind, shift, opts.max_iterations, opts.tolerance,
-                                         opts.solver == "gauss-newton") for kind in ("subspace", "full")}
+                                         opts.solver == "gauss-newton", study.lockstep)
+                         for kind in ("subspace", "full")}
         # Where every update starts: the initial model, and for the noisy samples the
         # error-free update (:meth:`sample_start`).
         self.origin = _Start(jnp.zeros(len(self.problem.parameterisation.parameters)), basis,
@@ -425,8 +458,9 @@ class _Group:
         self.devices = devices
         self.n = n
         mesh = jax.sharding.Mesh(np.array(devices), ("samples",))
-        # Samples per compiled call: a whole number per device, about a chunk.
-        self.batch = len(devices) * -(-study.chunk_size // len(devices))
+        # Samples per compiled call: whole lockstep batches per device, about a chunk.
+        per_call = len(devices) * study.lockstep
+        self.batch = per_call * -(-study.chunk_size // per_call)
         self._batch = {k: Compiled(lambda l, p, v, prob, start, s=s: _sharded(l, p, v, prob, start, s, mesh))
                        for k, s in self.settings.items()}
         self._perturb = Compiled(jax.vmap(_perturb, in_axes=(0, 0, 0, None, None)))
@@ -480,15 +514,17 @@ class _Group:
 
 def _sharded(lam, phi, valid, problem, start, settings: _Settings, mesh) -> _Outcome:
     """:func:`_update_one` over the samples: the sample axis sharded over the mesh's
-    devices (``shard_map``), in sequence on each device. Measured on XLA-CPU (2 cores,
-    tree, 10 modes): a ``vmap`` over 4 samples cost 7.3 s per sample against 1.4 s in
-    sequence, and vmapped LAPACK calls inside the loop can deadlock the CPU thread pool
-    (``jaxfem._lapack``)."""
+    devices (``shard_map``); on each device ``vmap`` over ``settings.lockstep`` samples at
+    a time (their loops run until the slowest is done), those batches in sequence."""
     shared, static = eqx.partition((problem, start), eqx.is_array)
+    v = settings.lockstep
 
     def local(lam, phi, valid, shared):
         problem, start = eqx.combine(shared, static)
-        return jax.lax.map(lambda x: _update_one(*x, problem, start, settings), (lam, phi, valid))
+        update = jax.vmap(lambda *x: _update_one(*x, problem, start, settings), axis_name=LOCKSTEP)
+        out = jax.lax.map(lambda x: update(*x), jax.tree.map(lambda a: a.reshape(-1, v, *a.shape[1:]),
+                                                            (lam, phi, valid)))
+        return jax.tree.map(lambda a: a.reshape(-1, *a.shape[2:]), out)
 
     P = jax.sharding.PartitionSpec
     # check_vma=False: the loop carries start replicated (θ0) and become per-sample.
