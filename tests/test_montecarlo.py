@@ -89,13 +89,14 @@ def trends():
                           errors=(("relative", (0.01, 0.02, 0.04)), ("frequency", (0.01,))))
     result = montecarlo(study, runner=Runner(study, devices=jax.devices()[:1]))
     stats = {(s["n_modes"], s["category"], s["magnitude"]): s for s in result.statistics()}
-    # Failures are counted per cell and left out: fits to noisy frequencies may diverge
-    # (3 parameters, few modes: cf. Δα ≈ 660 % in §4.3.4.1); with 10 modes Gauss-Newton
-    # may oscillate between the close modes 7-9 (measured: 2 of 6 at 2 % and 4 %).
+    # Failures are counted per cell and left out: fits to noisy frequencies may run away
+    # (3 parameters, few modes: cf. Δα ≈ 660 % in §4.3.4.1; measured 1 of 6 at n = 3 and
+    # at n = 10); there the fixed preconditioner is refreshed rather than the sample
+    # redone with full solves.
     failed = {k: sum(s["failed"].values()) for k, s in stats.items()}
     assert sum(failed.values()) == sum(result.failures.values())
-    assert all(v == 0 for k, v in failed.items() if k[:2] == (3, "relative")), str(failed)
-    assert all(v <= 2 for k, v in failed.items() if k[1] == "relative"), str(failed)
+    assert all(v == 0 for k, v in failed.items() if k[1] == "relative"), str(failed)
+    assert all(v <= 2 for v in failed.values()), str(failed)
     assert result.fallbacks == 0
     return stats
 
