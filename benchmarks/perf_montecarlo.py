@@ -3,7 +3,8 @@
 Batched: :class:`updating._montecarlo.Runner` — the complete update (pairing + Gauss–Newton
 loop) per sample, subspace eigensolves warm-started and preconditioned with the
 error-free update's (K − σM)⁻¹ (:func:`jaxfem.subspace`), samples sharded over 1, 2 and 4
-forced host devices, starting from the error-free update. Reference, in the same run: a
+forced host devices (and 4 samples per ``vmap`` batch on one device), starting from the
+error-free update. Reference, in the same run: a
 Python loop over the samples, each one call of the same update compiled for one sample,
 with a full dense eigensolve (:func:`jaxfem.dense_modes`, all modes, one Cholesky
 factorisation) at every residual evaluation — from the initial model (the plain update),
@@ -84,8 +85,9 @@ def main(argv=None) -> dict:
                     "failed": int(np.sum(got["status"] > 0)), "iterations": float(got["iterations"].mean())}
         print(f"loop, full solves from the {what:17s}: {S / t:7.3f} samples/s  (compile {compile_loop:.1f} s, "
               f"{out[key]['failed']} failed, {got['iterations'].mean():.1f} iterations per sample)")
-    for d in (1, 2, 4):
-        runner = Runner(study, devices=jax.devices()[:d])
+    for d, v in ((1, 1), (2, 1), (4, 1), (1, 4)):
+        runner = Runner(dataclasses.replace(study, lockstep=v), devices=jax.devices()[:d])
+        key = f"batched_{d}_devices" + (f"_lockstep_{v}" if v > 1 else "")
         # Once per group: compile, the error-free update and its preconditioner.
         _, compile_s = _timed(lambda r=runner: (r.reference_update(n), r.group(n).sample_start("subspace"),
                                                 r.group(n).data(study, 0, S)))
@@ -94,14 +96,14 @@ def main(argv=None) -> dict:
         diff = float(np.max(np.abs(got["alpha"][both] - same["alpha"][both]))) if both.any() else float("nan")
         plain = (got["status"] == 0) & (ref["status"] == 0)
         diff_plain = float(np.max(np.abs(got["alpha"][plain] - ref["alpha"][plain]))) if plain.any() else float("nan")
-        out[f"batched_{d}_devices"] = {
+        out[key] = {
             "seconds": t, "samples_per_s": S / t, "ratio_to_loop": t_loop / t, "ratio_to_loop_same_start": t_same / t,
             "setup_s": compile_s, "failed": int(np.sum(got["status"] > 0)), "fallbacks": int(got["fallback"].sum()),
             "refreshes": int(got["refreshes"].sum()), "iterations": float(got["iterations"].mean()),
             "max_alpha_difference_to_full": diff, "compared_samples": int(both.sum()),
             "max_alpha_difference_to_plain_loop": diff_plain, "compared_plain": int(plain.sum())}
-        print(f"batched, {d} device(s): {S / t:7.3f} samples/s  ×{t_loop / t:5.2f} the loop, ×{t_same / t:5.2f} the "
-              f"same-start loop (setup {compile_s:.1f} s, {out[f'batched_{d}_devices']['failed']} failed, "
+        print(f"batched, {d} device(s), vmap {v}: {S / t:7.3f} samples/s  ×{t_loop / t:5.2f} the loop, ×{t_same / t:5.2f} the "
+              f"same-start loop (setup {compile_s:.1f} s, {out[key]['failed']} failed, "
               f"{int(got['fallback'].sum())} fallbacks, {int(got['refreshes'].sum())} refreshes, {got['iterations'].mean():.1f} iterations; max |Δα| to full "
               f"{diff:.2e} on {int(both.sum())}, to the plain loop {diff_plain:.2e} on {int(plain.sum())})")
     out["peak_rss_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024

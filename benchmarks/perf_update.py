@@ -7,7 +7,7 @@ after a warm-up. Reference: the same iteration built from scipy — dense K(α) 
 residuals, a central finite-difference Jacobian (2p more solves) and the LM step by
 ``numpy.linalg.lstsq`` on the damped normal equations.
 
-Cases: the GARTEUR SM-AG19 model (benchmarks/models/garteur.bdf, 24 sensors, 14 modes,
+Cases: the GARTEUR SM-AG19 model (updating/data/garteur.bdf, 24 sensors, 14 modes,
 stiffness factors on its property groups) and a ≈5000-DoF frame (20 groups, 14 modes).
 Usage: ``python -m benchmarks.perf_update [--cases garteur frame5000] [--json OUT]``.
 """
@@ -35,12 +35,11 @@ from scipy.optimize import linear_sum_assignment  # noqa: E402
 
 import jaxfem  # noqa: E402
 from benchmarks.frames import SIZES, frame_bdf  # noqa: E402
+from benchmarks.models import MODELS  # noqa: E402
 from benchmarks.perf_eigen import best_time  # noqa: E402
 from identification import ModalData, Sensors, observation_matrix  # noqa: E402
 from jaxfem.io import read_bdf, read_bdf_text  # noqa: E402
 from updating import Options, Parameter, ParameterSet, build_problem, parameterise, residuals  # noqa: E402
-
-MODELS = Path(__file__).parent / "models"
 
 
 def garteur_case():

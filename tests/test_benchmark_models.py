@@ -7,16 +7,14 @@ about 726 DoFs, 49 measured DoFs at 30 locations).
 
 import csv
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 import jaxfem
+from benchmarks.models import MODELS
 from benchmarks.models.test_data import GARTEUR_TABLE_4_3, TREE_TABLE_4_6
 from jaxfem.io import read_bdf
-
-MODELS = Path(__file__).resolve().parents[1] / "benchmarks" / "models"
 
 
 def _build(name):
@@ -91,7 +89,7 @@ def _mode_type(model, M, phi, U, k):
     and the fin move sideways, symmetric ('S') otherwise.
     """
     row = {int(g): i for i, g in enumerate(np.asarray(model.node_ids))}
-    u = lambda g, c: U[row[g], c - 1, k]  # noqa: E731
+    u = lambda g, c: U[row[g], c - 1, k]
     grid = np.asarray(model.dofs.labels)[:, 0]
     regions = {
         "wing": ((grid >= 2000) & (grid < 6000)) | (grid >= 8000),

@@ -1,6 +1,5 @@
 """Warm-started subspace iteration (jaxfem.subspace) against the full solve (jaxfem.eigh)."""
 
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -8,9 +7,10 @@ import numpy as np
 import pytest
 
 import jaxfem
+from benchmarks.models import MODELS
 from jaxfem.io import read_bdf
 
-TREE = Path(__file__).parents[1] / "updating" / "data" / "tree.bdf"
+TREE = MODELS / "tree.bdf"
 N, Q = 12, 30
 
 

@@ -1,19 +1,17 @@
 """Acceptance of the updating loop on the thesis benchmark structures (§4.2, §4.3)."""
 
 import csv
-from pathlib import Path
 
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import jaxfem
+from benchmarks.models import MODELS
 from benchmarks.models.test_data import TREE_TABLE_4_6
 from identification import ModalData, Sensors, observation_matrix
 from jaxfem.io import read_bdf
 from updating import Noise, Options, Parameter, ParameterSet, build_problem, parameter_std, parameterise, update
-
-MODELS = Path(__file__).parents[1] / "benchmarks" / "models"
 
 
 def _sensors(name):
