@@ -118,6 +118,34 @@ def test_rerun_resumes_from_the_chunks(study):
     assert json.loads((d / "mc.json").read_text())["statistics"] == before["statistics"]
 
 
+def test_ray_option_reaches_montecarlo_ray(study, monkeypatch):
+    """``--ray local`` hands the study to ``updating.montecarlo_ray`` without an address
+    (start a cluster here), ``--ray ADDRESS`` with it; a cluster that cannot be reached
+    exits 2 naming the address. (The Ray run itself is tested in test_ray.py; here it is
+    replaced by the in-process study, which must give the same statistics.)"""
+    from updating import _ray
+
+    d, _, first = study
+    assert first.exit_code == 0, first.output
+    seen = []
+
+    def fake(study_, *, address, out, progress, runner):
+        seen.append(address)
+        if address is not None:
+            raise ConnectionError(f"could not reach {address}")
+        return _montecarlo.montecarlo(study_, out=out, progress=progress, runner=runner)
+
+    monkeypatch.setattr(_ray, "montecarlo_ray", fake)
+    base = ["montecarlo", str(d / "study.toml"), "--json", str(d / "ray.json"), "--devices", "1"]
+    ok = runner.invoke(app, base + ["--ray", "local"])
+    assert ok.exit_code == 0, ok.output
+    assert json.loads((d / "ray.json").read_text())["statistics"] == \
+        json.loads((d / "mc.json").read_text())["statistics"]
+    bad = runner.invoke(app, base + ["--ray", "ray://head:10001"])
+    assert bad.exit_code == 2 and "--ray ray://head:10001: could not reach ray://head:10001" in bad.stderr
+    assert seen == [None, "ray://head:10001"]
+
+
 @pytest.mark.parametrize("text, named", [
     ("[study\nsamples = 2\n", "Expected ']'"),
     ("[study]\nmodeling_error = 1\n", "modeling_error"),
