@@ -57,7 +57,7 @@ from ._effects import (
 from ._localisation import group_scores, reduction, residual_forces
 from ._parameters import Options, Parameter, Parameterisation, ParameterSet
 from ._report import json_number
-from ._residuals import Problem, evaluate, residuals
+from ._residuals import Problem, evaluate, residuals, rows
 from ._solve import Iteration, UpdateResult, build_problem, update
 
 
@@ -116,13 +116,14 @@ class Candidate:
 # batched fits
 
 
-def _cost_rows(theta, problem: Problem, mask):
-    """Residual rows of the test modes in ``mask`` (unpaired ones get the worst value)."""
-    eps, ev = residuals(theta, replace(problem, active=mask))
-    rows = jnp.concatenate([jnp.ravel(eps[k]) for k in ("eigenvalue", "eigenvector")])
+def _cost_rows(theta, problem: Problem, mask, ev):
+    """Residual rows of the test modes in ``mask`` at the evaluation ``ev`` (unpaired ones
+    get the worst value)."""
+    eps = rows(theta, replace(problem, active=mask), ev)
+    cost = sum(jnp.sum(eps[k] ** 2) for k in ("eigenvalue", "eigenvector"))
     unpaired = mask & ~ev.paired
     penalty = jnp.sum(jnp.where(unpaired, (problem.lam_weight * problem.max_freq_dev) ** 2 + 1.0, 0.0))
-    return jnp.sum(rows**2) + penalty, ev
+    return cost + penalty
 
 
 def _solve_one(theta0, problem: Problem, max_steps: int):
@@ -130,13 +131,13 @@ def _solve_one(theta0, problem: Problem, max_steps: int):
     sol = optx.least_squares(lambda t, p: residuals(t, p)[0], solver, theta0, problem,
                              options={"jac": "fwd"}, max_steps=max_steps, throw=False)
     theta = sol.value
-    fit, _ = _cost_rows(theta, problem, problem.active)
-    held, ev = _cost_rows(theta, problem, ~problem.active)
+    ev = evaluate(theta, problem)  # pairing does not depend on the mask: one eigen solve for both costs
+    fit, held = (_cost_rows(theta, problem, mask, ev) for mask in (problem.active, ~problem.active))
     return theta, fit, held, ev.lam_a, ev.paired, ev.mac
 
 
 def _cost_one(theta, problem: Problem):
-    return _cost_rows(theta, problem, problem.active)[0]
+    return _cost_rows(theta, problem, problem.active, evaluate(theta, problem))
 
 
 class _Fits:

@@ -269,7 +269,8 @@ def _residual(theta, args, settings: _Settings):
         # basis reached with (K − σM)⁻¹ of this model; the next evaluation tries the fixed one again.
         # Decided for the whole lockstep batch, so that under vmap it stays a branch.
         refreshed = ~sol.converged
-        sol = jax.lax.cond(jax.lax.psum(refreshed.astype(jnp.int32), LOCKSTEP) > 0,
+        anywhere = jax.lax.psum(refreshed.astype(jnp.int32), LOCKSTEP) > 0 if settings.lockstep > 1 else refreshed
+        sol = jax.lax.cond(anywhere,
                            lambda: solve(sol.basis, jaxfem.shifted_inverse(Ks, Ms, shift=settings.shift)),
                            lambda: sol)
     phi_s = problem.C @ sol.basis[:, : problem.n_model]
@@ -515,12 +516,16 @@ class _Group:
 def _sharded(lam, phi, valid, problem, start, settings: _Settings, mesh) -> _Outcome:
     """:func:`_update_one` over the samples: the sample axis sharded over the mesh's
     devices (``shard_map``); on each device ``vmap`` over ``settings.lockstep`` samples at
-    a time (their loops run until the slowest is done), those batches in sequence."""
+    a time (their loops run until the slowest is done), those batches in sequence. One
+    sample is not vmapped: a vmap of one was measured 4.6× slower on XLA-CPU (tree, 10
+    modes: 0.48 s against 0.10 s per sample)."""
     shared, static = eqx.partition((problem, start), eqx.is_array)
     v = settings.lockstep
 
     def local(lam, phi, valid, shared):
         problem, start = eqx.combine(shared, static)
+        if v == 1:
+            return jax.lax.map(lambda x: _update_one(*x, problem, start, settings), (lam, phi, valid))
         update = jax.vmap(lambda *x: _update_one(*x, problem, start, settings), axis_name=LOCKSTEP)
         out = jax.lax.map(lambda x: update(*x), jax.tree.map(lambda a: a.reshape(-1, v, *a.shape[1:]),
                                                             (lam, phi, valid)))
