@@ -85,7 +85,8 @@ class Study:
     ``subspace`` or ``full``; ``lockstep``: samples updated together under ``vmap`` on
     each device — 1 (in sequence) on CPUs, where a batch waits for its slowest sample
     (measured: 24 samples with 1/5/20 % errors in lockstep 1.9× slower per sample than in
-    sequence; 4 with uniform errors as fast), larger on accelerators.
+    sequence; 4 with uniform errors as fast); larger batches are meant for accelerators
+    (not measured: no GPU was available).
     """
 
     model: Path
