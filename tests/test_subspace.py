@@ -54,7 +54,7 @@ def test_subspace_equals_full_solve(tree):
 def test_preconditioned_subspace_equals_exact(tree):
     """With the fixed preconditioner (K − σM)⁻¹ of the reference model (no factorisation
     of the perturbed one) the −17 %/+10 % model converges to the same modes as the exact
-    inverse iteration (λ to 1e-12, vectors to 1e-8 of their largest component), in a few
+    inverse iteration (λ to 1e-10, vectors to 1e-8 of their largest component), in a few
     more sweeps; its derivatives equal the exact solve's (1e-8 of the largest); and a preconditioner of
     a model too far off (the modes of the −17 % groups at −90 %) is reported as not
     converged rather than returned."""
@@ -65,7 +65,7 @@ def test_preconditioned_subspace_equals_exact(tree):
     exact = jaxfem.subspace(K, M, start, N)
     pre = jaxfem.subspace(K, M, start, N, preconditioner=inverse)
     assert bool(pre.converged) and int(exact.sweeps) <= int(pre.sweeps) < 40
-    np.testing.assert_allclose(pre.lam[:N], exact.lam[:N], rtol=1e-12)
+    np.testing.assert_allclose(pre.lam[:N], exact.lam[:N], rtol=1e-10)
     u, v = np.asarray(pre.basis[:, :N]), np.asarray(exact.basis[:, :N])
     sign = np.sign(np.sum(u * v, axis=0))  # the sign rule may pick either of two equal components
     v = v * sign
