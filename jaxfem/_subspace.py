@@ -78,6 +78,12 @@ def _solve(solver, exact: bool, r):
     return _lapack.cho_solve(solver, r) if exact else solver @ r
 
 
+def _shifted_factor(K, M, shift: float):
+    """Lower Cholesky factor of the dense K − σM (NaN where it is not positive definite)."""
+    Kd = K.todense()
+    return _lapack.cholesky(Kd - jnp.asarray(shift, Kd.dtype) * M.todense() if shift else Kd)
+
+
 def _rayleigh_ritz(K, M, Y):
     """Ritz pairs of (K, M) on span Y: values ascending, vectors V M-orthonormal; and the
     residuals K V − M V Μ."""
@@ -94,9 +100,8 @@ def shifted_inverse(K, M, *, shift: float = 0.0) -> Float[Array, "n n"]:
     """(K − σM)⁻¹ as a dense matrix: the fixed preconditioner of :func:`subspace` for
     models near (K, M) (one factorisation, n right-hand sides)."""
     K, M = _operator("K", K), _operator("M", M)
-    Kd = K.todense()
-    factor = _lapack.cholesky(Kd - jnp.asarray(shift, Kd.dtype) * M.todense() if shift else Kd)
-    inverse = _lapack.cho_solve(factor, jnp.eye(Kd.shape[0], dtype=Kd.dtype))
+    factor = _shifted_factor(K, M, shift)
+    inverse = _lapack.cho_solve(factor, jnp.eye(factor.shape[0], dtype=factor.dtype))
     return 0.5 * (inverse + inverse.T)
 
 
@@ -123,11 +128,8 @@ def subspace(K, M, start: Float[Array, "n q"], n_modes: int, *, shift: float = 0
         raise ValueError(f"need 1 ≤ n_modes < q basis vectors, got n_modes = {n_modes}, q = {q}")
     K, M, start, preconditioner = jax.lax.stop_gradient((K, M, start, preconditioner))
     exact = preconditioner is None
-    if exact:
-        Kd = K.todense()
-        solver = _lapack.cholesky(Kd - jnp.asarray(shift, Kd.dtype) * M.todense() if shift else Kd)
-    else:
-        solver = preconditioner
+    solver = _shifted_factor(K, M, shift) if exact else preconditioner
+
     def test(V, R):
         step = _solve(solver, exact, R)
         err = jnp.linalg.norm(step[:, :n_modes], axis=0) / jnp.linalg.norm(V[:, :n_modes], axis=0)
@@ -163,7 +165,7 @@ def dense_modes(K, M, n_modes: int, *, shift: float = 0.0) -> Subspace:
         raise ValueError("the K-standardised solve needs a mass on every DoF; use jaxfem.eigh for massless DoFs")
     K, M = jax.lax.stop_gradient((K, M))
     Md = M.todense()
-    factor = _lapack.cholesky(K.todense() - jnp.asarray(shift, Md.dtype) * Md)
+    factor = _shifted_factor(K, M, shift)
     a = _lapack.solve_lower(factor, _lapack.solve_lower(factor, Md).T)
     nu, y = _lapack.eigh(0.5 * (a + a.T))
     nu, y = nu[::-1], y[:, ::-1]
