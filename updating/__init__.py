@@ -44,6 +44,6 @@ from ._prediction import frf_correlation as frf_correlation
 from ._prediction import predict_frf as predict_frf
 from ._residuals import Problem as Problem
 from ._residuals import residuals as residuals
-from ._solve import UpdateResult as UpdateResult
+from ._result import UpdateResult as UpdateResult
 from ._solve import build_problem as build_problem
 from ._solve import update as update

@@ -58,7 +58,8 @@ from ._localisation import group_scores, reduction, residual_forces
 from ._parameters import Options, Parameter, Parameterisation, ParameterSet
 from ._report import json_number
 from ._residuals import Problem, evaluate, residuals, rows
-from ._solve import Iteration, UpdateResult, build_problem, update
+from ._result import Iteration, UpdateResult
+from ._solve import build_problem, update
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,8 @@ from jaxfem import Model
 from ._compiled import Compiled
 from ._parameters import Parameter, ParameterSet, parameterise
 from ._residuals import Problem, evaluate, residuals
-from ._solve import UpdateResult, build_problem, update
+from ._result import UpdateResult
+from ._solve import build_problem, update
 
 
 def _paired_modes(theta: Float[Array, " p"], problem: Problem):

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import equinox as eqx
 import jax
@@ -29,41 +28,7 @@ from ._compiled import Compiled
 from ._correlation import pair_modes
 from ._parameters import Parameterisation, ParameterSet, parameterise
 from ._residuals import Problem, auto_eigenvalue_weights, residuals
-
-
-@dataclass
-class Iteration:
-    """One accepted iterate: parameters, per-test-mode Δf and MAC (NaN if unpaired), cost."""
-
-    iteration: int
-    alpha: np.ndarray
-    freq_dev: np.ndarray
-    mac: np.ndarray
-    cost: float
-
-
-@dataclass
-class UpdateResult:
-    """Outcome of :func:`update`: updated model, factors, history, before/after pairings."""
-
-    model: Model
-    names: list[str]
-    alpha: np.ndarray
-    theta: np.ndarray
-    converged: bool
-    iterations: int
-    history: list[Iteration]
-    active: np.ndarray  # bool per test mode
-    before: object  # Pairing (Hungarian) of the initial model
-    after: object  # Pairing of the updated model
-    seconds: float
-    sensor_modes: dict  # "before"/"after": (model frequencies in Hz, shapes at the sensors)
-    parameterisation: Parameterisation = field(repr=False)
-
-    def table(self) -> list[dict]:
-        """Parameters with their factors α (value = value₀·(1 + α))."""
-        return [{"name": n, "kind": p.kind, "alpha": float(a)} for n, p, a in
-                zip(self.names, self.parameterisation.parameters, self.alpha)]
+from ._result import Iteration, UpdateResult
 
 
 def _active_mask(test: ModalData, options) -> np.ndarray:
