@@ -345,6 +345,10 @@ class Pairing(eqx.Module):
             "mean_mac": float(np.mean(self.mac)) if dev.size else None,
         }
 
+    def to_json(self) -> dict:
+        """JSON-ready: the thresholds ``min_mac`` and ``max_freq_dev`` and :meth:`summary`."""
+        return {"min_mac": self.min_mac, "max_freq_dev": self.max_freq_dev, **self.summary()}
+
 
 def _check_thresholds(min_mac, max_freq_dev) -> tuple[float, float]:
     min_mac, max_freq_dev = float(min_mac), float(max_freq_dev)

@@ -302,6 +302,12 @@ class Diagnosis:
     node_scores: dict[int, float]
     sensor_modes: tuple  # baseline model frequencies (Hz) and shapes at the sensors
 
+    def to_json(self) -> dict:
+        """The JSON-ready ``report`` (NaN and inf as null)."""
+        from ._report import json_safe
+
+        return json_safe(self.report)
+
 
 def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = None, *,
              options: DiagnoseOptions = DiagnoseOptions(),
@@ -708,6 +714,12 @@ class Confirmation:
     passive: np.ndarray  # bool per test mode
     report: dict
 
+    def to_json(self) -> dict:
+        """The JSON-ready ``report`` (NaN and inf as null)."""
+        from ._report import json_safe
+
+        return json_safe(self.report)
+
 
 def add_effect(model: Model, test: ModalData, effect: Effect, parameters: ParameterSet | None = None, *,
                passive_modes: tuple[int, ...] | None = None,
@@ -767,9 +779,7 @@ def add_effect(model: Model, test: ModalData, effect: Effect, parameters: Parame
         "rms_freq_dev_pct_passive_before": rms(d0, is_passive), "rms_freq_dev_pct_passive_after": rms(d1, is_passive),
         "mean_mac_passive_before": json_number(np.nanmean(m0[is_passive])) if is_passive.any() else None,
         "mean_mac_passive_after": json_number(np.nanmean(m1[is_passive])) if is_passive.any() else None,
-        "history": [{"iteration": h.iteration, "cost": float(h.cost),
-                     "rms_freq_dev_pct_active": rms(100 * h.freq_dev, ~is_passive),
-                     "rms_freq_dev_pct_passive": rms(100 * h.freq_dev, is_passive)} for h in after.history],
+        "history": [h.to_json(after.names, is_passive) for h in after.history],
     }
     return Confirmation(final, before, after, is_passive, report)
 

@@ -9,6 +9,13 @@ import numpy as np
 from jaxfem import Model
 
 from ._parameters import Parameterisation
+from ._report import json_number
+
+
+def _rms_pct(dev_pct: np.ndarray) -> float | None:
+    """RMS of the finite entries (None if there are none)."""
+    dev_pct = dev_pct[np.isfinite(dev_pct)]
+    return float(np.sqrt(np.mean(dev_pct**2))) if dev_pct.size else None
 
 
 @dataclass
@@ -20,6 +27,23 @@ class Iteration:
     freq_dev: np.ndarray
     mac: np.ndarray
     cost: float
+
+    def to_json(self, names: list[str], passive=None) -> dict:
+        """JSON-ready: ``alpha`` by parameter name, ``freq_dev_pct`` and ``mac`` per test
+        mode (null where unpaired), ``cost``, and the RMS Δf (%) over the active and over
+        the passive (held-out; ``passive``: bool per test mode, default none) test modes,
+        null where no such mode is paired. The one schema of every iteration history."""
+        dev = 100.0 * np.asarray(self.freq_dev, dtype=np.float64)
+        passive = np.zeros(dev.shape, bool) if passive is None else np.asarray(passive, bool)
+        return {
+            "iteration": int(self.iteration),
+            "alpha": {name: float(a) for name, a in zip(names, np.asarray(self.alpha))},
+            "freq_dev_pct": [json_number(d) for d in dev],
+            "mac": [json_number(m) for m in np.asarray(self.mac)],
+            "cost": float(self.cost),
+            "rms_freq_dev_pct_active": _rms_pct(dev[~passive]),
+            "rms_freq_dev_pct_passive": _rms_pct(dev[passive]),
+        }
 
 
 @dataclass
@@ -44,3 +68,22 @@ class UpdateResult:
         """Parameters with their factors α (value = value₀·(1 + α))."""
         return [{"name": n, "kind": p.kind, "alpha": float(a)} for n, p, a in
                 zip(self.names, self.parameterisation.parameters, self.alpha)]
+
+    def to_json(self) -> dict:
+        """JSON-ready: parameters (name, kind, α, bounds, within bounds), convergence,
+        the iteration history (:meth:`Iteration.to_json`, passive = not active), the
+        pairings before and after (:meth:`Pairing.to_json`), active and passive modes."""
+        active = np.asarray(self.active, dtype=bool)
+        parameters = [dict(row, bounds=list(p.bounds), within_bounds=bool(p.bounds[0] <= row["alpha"] <= p.bounds[1]))
+                      for row, p in zip(self.table(), self.parameterisation.parameters)]
+        return {
+            "parameters": parameters,
+            "converged": bool(self.converged),
+            "iterations": int(self.iterations),
+            "seconds": float(self.seconds),
+            "history": [h.to_json(self.names, ~active) for h in self.history],
+            "before": self.before.to_json(),
+            "after": self.after.to_json(),
+            "active_modes": [int(j) + 1 for j in np.flatnonzero(active)],
+            "passive_modes": [int(j) + 1 for j in np.flatnonzero(~active)],
+        }
