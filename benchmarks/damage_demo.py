@@ -8,8 +8,8 @@ tip) are simulated by a direct solve of ``−ω²M + iω(μM + κK^D) + K^D + i�
 on a stepped-sine grid of constant relative spacing (Δf/f = 2·10⁻⁴, 5–2000 Hz) for the
 healthy and the damaged beam, each with 1 % complex Gaussian noise on every line
 (relative to |H|). Frequencies and damping of the first ``N_MODES`` modes come from an
-SDOF inverse-FRF fit around each peak (eqs. 3.34–3.37); μ and κ are fitted to the
-healthy values (eq. 3.40); C of eq. (3.45) is scanned over all 20 elements with the
+SDOF inverse-FRF fit around each peak (eq. 3.34, eq. 3.35, eq. 3.36, eq. 3.37); μ and κ
+are fitted to the healthy values (eq. 3.40); C of eq. 3.45 is scanned over all 20 elements with the
 damage model of :func:`identification._damage.localise_damage` — deliberately not the
 true damage size (50 % stiffness loss, η_d = 0.1), as in practice.
 
@@ -115,8 +115,8 @@ def frequency_lines() -> np.ndarray:
 
 
 def identify(frequencies_hz, h, model_hz) -> tuple[np.ndarray, np.ndarray]:
-    """Frequency (Hz) and damping ratio per mode: the SDOF inverse-FRF fit (thesis eqs.
-    3.34–3.37, :func:`identification.sdof_fit`) at each of the model's resonances."""
+    """Frequency (Hz) and damping ratio per mode: the SDOF inverse-FRF fit (thesis eq. 3.34,
+    eq. 3.35, eq. 3.36, eq. 3.37, :func:`identification.sdof_fit`) at each of the model's resonances."""
     from identification import FRFData, Sensors, sdof_fit
 
     tip = Sensors.from_components([N_ELEMENTS + 1], [2])
@@ -179,7 +179,7 @@ def run(seed: int = 0, noise: float = 0.01, true_element: int = TRUE_ELEMENT, ou
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
         plot_damage_map(model, scan, out / "damage_map.png", true_elements=(true_element,),
-                        title=f"C, eq. (3.45): true element {true_element}, located {best}")
+                        title=f"C, eq. 3.45: true element {true_element}, located {best}")
         (out / "damage_summary.json").write_text(json.dumps(summary, indent=2))
     return summary
 

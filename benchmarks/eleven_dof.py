@@ -2,7 +2,7 @@
 
 A chain of 11 masses (Table 5.6): mass 6 is tied to ground by k6 = 18000 N/m, each other
 mass i to its neighbour on the side of mass 6 by k_i (symmetric about mass 6); viscous
-damping D = 10⁻³ s · K; the responses (eqs. 5.3–5.4) are evaluated at the undamped natural
+damping D = 10⁻³ s · K; the responses (eq. 5.3, eq. 5.4) are evaluated at the undamped natural
 frequencies. For the exciter sets "2,4", "2,10", "4,6", "2,4,8,10" the four methods give
 the MIF tables of the thesis: Lewis & Wrisley (Table 5.7), Asher (5.8), Hunt et al.
 (5.9) and the thesis' method of §3.4 (5.10); they are compared entry by entry with the

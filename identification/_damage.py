@@ -5,11 +5,11 @@ friction there. Both show up globally: the natural frequencies drop and the moda
 damping rises, by an amount that depends on how much strain energy each mode puts into
 the damaged region. Comparing measured relative damping changes (healthy → damaged)
 with the changes a finite-element model predicts for a damage placed at each candidate
-location, the correlation coefficient C of eq. (3.45) peaks at the true location
+location, the correlation coefficient C of eq. 3.45 peaks at the true location
 (eq. 3.46).
 
 Damping model (§3.3.3). The healthy structure has Rayleigh damping ``D = μM + κK``
-(eq. 1.29), i.e. modal ratios ``ζ_n = μ/(2ω_n) + κω_n/2`` (eqs. 3.38–3.40; the thesis
+(eq. 1.29), i.e. modal ratios ``ζ_n = μ/(2ω_n) + κω_n/2`` (eq. 3.40; the thesis
 writes them η_a,n), with μ, κ fitted to the measured healthy ratios by least squares
 (:func:`fit_rayleigh`). A damage candidate G scales the stiffness of its elements by
 ``1 − s`` and gives them a structural loss factor η_d, i.e. adds ``iη_d K_G`` to the
@@ -21,12 +21,12 @@ eigenvalue, Ungar & Kerwin 1962; Johnson & Kienholz 1982):
 
 with ``K^D = K − s K_G⁰`` the damaged stiffness and ``K_G = (1 − s) K_G⁰`` the damaged
 stiffness of the group (φ mass-normalised, so ``φᵀK^Dφ = ω²``). The thesis (§5.3.2)
-evaluates eq. (3.40) on the damaged model only; the loss-factor term is the
+evaluates eq. 3.40 on the damaged model only; the loss-factor term is the
 "additional friction" of §3.3.1, set to zero by ``loss_factor=0``.
 
 Measured ratios come from the user (any modal fit, e.g. one SDOF inverse-FRF fit per
-resonance, eqs. 3.34–3.37, :func:`identification.sdof_fit`, as in the demonstration
-``benchmarks/damage_demo.py``). Units: frequencies in Hz at the boundary, ω in rad/s inside.
+resonance, eq. 3.34, eq. 3.35, eq. 3.36, eq. 3.37, :func:`identification.sdof_fit`, as in the
+demonstration ``benchmarks/damage_demo.py``). Units: frequencies in Hz at the boundary, ω in rad/s inside.
 """
 
 from __future__ import annotations
@@ -102,7 +102,7 @@ def _scalar(name: str, x, low: float, high: float = np.inf, *, open_high: bool =
 def fit_rayleigh(
     frequencies_hz: Float[ArrayLike, " m"], damping_ratios: Float[ArrayLike, " m"]
 ) -> tuple[Float[Array, ""], Float[Array, ""]]:
-    """Rayleigh constants ``(μ, κ)`` fitted to measured modal damping, eqs. (3.38)–(3.40).
+    """Rayleigh constants ``(μ, κ)`` fitted to measured modal damping, eq. 3.40.
 
     Least squares over the modes of ``ζ_n = μ/(2ω_n) + κω_n/2`` (eq. 3.40), unweighted as
     in the thesis; with two modes this is :func:`jaxfem.rayleigh_coefficients`.
@@ -118,7 +118,7 @@ def fit_rayleigh(
     if len(np.unique(f)) < 2:
         raise ValueError(f"a Rayleigh fit needs at least two distinct frequencies, got {f.tolist()} Hz")
     w = 2.0 * np.pi * f
-    a = np.stack([0.5 / w, 0.5 * w], axis=1)  # eq. (3.40): ζ = a @ (μ, κ)
+    a = np.stack([0.5 / w, 0.5 * w], axis=1)  # eq. 3.40: ζ = a @ (μ, κ)
     scale = np.linalg.norm(a, axis=0)  # columns differ by ω²: equilibrate
     coef, *_ = np.linalg.lstsq(a / scale, z, rcond=None)
     mu, kappa = coef / scale
@@ -131,13 +131,13 @@ def fit_rayleigh(
 def damping_deviations(
     damaged: Float[ArrayLike, "*batch m"], healthy: Float[ArrayLike, " m"]
 ) -> Float[np.ndarray, "*batch m"]:
-    """Relative damage-induced damping deviations ``(η^D − η^H)/η^H``, eqs. (3.41)/(3.42).
+    """Relative damage-induced damping deviations ``(η^D − η^H)/η^H``, eq. 3.41, eq. 3.42.
 
     **Arguments:** damping ratios of the damaged state (one vector, or a batch of
     vectors, e.g. one per candidate) and of the healthy state (positive), per mode.
 
-    **Returns:** Δη, dimensionless, shaped like ``damaged`` (the vectors of eqs.
-    3.43/3.44).
+    **Returns:** Δη, dimensionless, shaped like ``damaged`` (the vectors of
+    eq. 3.43, eq. 3.44).
     """
     h = _positive("healthy damping", _vector("healthy damping", healthy))
     d = np.asarray(damaged, dtype=np.float64)
@@ -146,13 +146,13 @@ def damping_deviations(
     bad = np.argwhere(~np.isfinite(d))
     if len(bad):
         raise ValueError(f"damaged damping: mode {bad[0][-1]} has value {d[tuple(bad[0])]} (not finite)")
-    return (d - h) / h  # eqs. (3.41), (3.42)
+    return (d - h) / h  # eq. 3.41, eq. 3.42
 
 
 def damping_correlation(
     predicted: Float[ArrayLike, "*batch m"], measured: Float[ArrayLike, " m"]
 ) -> Float[np.ndarray, " *batch"]:
-    """Correlation coefficient of eq. (3.45) between predicted and measured deviations.
+    """Correlation coefficient of eq. 3.45 between predicted and measured deviations.
 
     ``C = (Δη_aᵀΔη_e)² / ((Δη_aᵀΔη_a)(Δη_eᵀΔη_e))``, in [0, 1]; 1 when the two
     vectors are parallel (a modal assurance criterion on the deviation vectors). A
@@ -174,7 +174,7 @@ def damping_correlation(
         raise ValueError("measured damping deviations are all zero: no damage-induced change to locate")
     aa = np.einsum("...m,...m->...", a, a)
     ae = a @ e
-    return np.where(aa > 0, ae**2 / np.where(aa > 0, aa, 1.0) / ee, 0.0)  # eq. (3.45)
+    return np.where(aa > 0, ae**2 / np.where(aa > 0, aa, 1.0) / ee, 0.0)  # eq. 3.45
 
 
 # --------------------------------------------------------------- analytical damping
@@ -259,7 +259,7 @@ def _scan_damping(
         energy = (1.0 - reduction) * jnp.einsum("ir,ij,jr->r", phi, k_g0, phi)  # φᵀ K_G φ
         omega = jnp.sqrt(jnp.maximum(lam, 0.0))
         safe = jnp.where(omega > 0, omega, 1.0)
-        zeta = 0.5 * (mu / safe + kappa * omega) + 0.5 * loss * energy / (safe * safe)  # eq. (3.40) + MSE
+        zeta = 0.5 * (mu / safe + kappa * omega) + 0.5 * loss * energy / (safe * safe)  # eq. 3.40 + MSE
         j = jnp.argmax(jnp.abs(m_phi_h.T @ phi), axis=1)
         return omega[j], zeta[j]
 
@@ -313,7 +313,7 @@ def damage_damping(
 
     The elements' stiffness is scaled by ``1 − stiffness_reduction`` and given the loss
     factor ``loss_factor``; the structure keeps Rayleigh damping ``μM + κK^D``. Modal
-    ratios by eq. (3.40) on the damaged modes plus the modal strain energy of the
+    ratios by eq. 3.40 on the damaged modes plus the modal strain energy of the
     group (module docstring). ``elements=()`` gives the healthy model's ratios.
 
     **Arguments:** the model; element ids (beams, rods, springs, bushes) forming the
@@ -342,17 +342,17 @@ def damage_damping(
 
 
 class DamageScan(eqx.Module):
-    """Result of :func:`localise_damage`: eq. (3.45) at every candidate location.
+    """Result of :func:`localise_damage`: eq. 3.45 at every candidate location.
 
     **Fields:**
 
     - ``groups``: the candidates, each a tuple of element ids.
-    - ``correlation`` (c,): C per candidate, eq. (3.45).
-    - ``predicted`` (c, m): Δη_a per candidate, eqs. (3.42)/(3.44).
-    - ``measured`` (m,): Δη_e, eqs. (3.41)/(3.43).
+    - ``correlation`` (c,): C per candidate, eq. 3.45.
+    - ``predicted`` (c, m): Δη_a per candidate, eq. 3.42, eq. 3.44.
+    - ``measured`` (m,): Δη_e, eq. 3.41, eq. 3.43.
     - ``predicted_hz`` (c, m): natural frequencies of each damaged model.
     - ``model_hz`` (m,), ``model_damping`` (m,): the healthy model's frequencies and
-      eq. (3.40) ratios of the compared modes.
+      eq. 3.40 ratios of the compared modes.
     - ``mode_indices`` (m,): model mode (0-based) of each measured mode.
     - ``mu`` (1/s), ``kappa`` (s): the Rayleigh constants used.
     """
@@ -426,7 +426,7 @@ def localise_damage(
     - ``mode_indices``: the model mode (0-based) of each measured mode; default
       0, 1, … (the lowest modes, in order).
     - ``mu``, ``kappa``: Rayleigh constants; default fitted to the healthy measurement
-      (:func:`fit_rayleigh`, eqs. 3.38–3.40). Give both or neither.
+      (:func:`fit_rayleigh`, eq. 3.40). Give both or neither.
 
     **Returns:** a :class:`DamageScan`.
     """
@@ -456,18 +456,18 @@ def localise_damage(
     masks = _group_masks(model, groups)
 
     omega_h, omega_d, zeta_d = _scan_damping(model, masks, idx, s, eta, mu, kappa)
-    zeta_h = 0.5 * (mu / omega_h + kappa * omega_h)  # eq. (3.40)
+    zeta_h = 0.5 * (mu / omega_h + kappa * omega_h)  # eq. 3.40
     if np.any(zeta_h <= 0):
         k = int(np.flatnonzero(zeta_h <= 0)[0])
         raise ValueError(
             f"the Rayleigh model gives damping {zeta_h[k]:.3g} for model mode {int(idx[k])}; "
             f"μ = {mu:.3g} 1/s, κ = {kappa:.3g} s do not describe the healthy structure"
         )
-    measured = damping_deviations(z_d, z_h)  # eq. (3.41)
-    predicted = damping_deviations(zeta_d, zeta_h)  # eq. (3.42)
+    measured = damping_deviations(z_d, z_h)  # eq. 3.41
+    predicted = damping_deviations(zeta_d, zeta_h)  # eq. 3.42
     return DamageScan(
         groups=groups,
-        correlation=damping_correlation(predicted, measured),  # eq. (3.45)
+        correlation=damping_correlation(predicted, measured),  # eq. 3.45
         predicted=predicted,
         measured=measured,
         predicted_hz=omega_d / (2.0 * np.pi),
@@ -488,7 +488,7 @@ def plot_damage_map(
     path: str | Path,
     *,
     true_elements: Sequence[int] = (),
-    title: str = "Correlation of damage-induced damping deviations, eq. (3.45)",
+    title: str = "Correlation of damage-induced damping deviations, eq. 3.45",
 ) -> Path:
     """Map of C over the structure (cf. thesis Figure 5.28) and C per candidate, as a PNG.
 

@@ -1,8 +1,8 @@
 """Modal parameters from FRFs: SDOF inverse-FRF fit and polyreference LSCF + LSFD.
 
 - :func:`sdof_fit`: one resonance at a time, the inverse receptance of a viscously
-  damped single-DoF system is a quadratic in ω (thesis §3.3.2, eqs. 3.34–3.37). For
-  well separated modes.
+  damped single-DoF system is a quadratic in ω (thesis §3.3.2, eq. 3.34, eq. 3.35,
+  eq. 3.36, eq. 3.37). For well separated modes.
 - :func:`lscf` / :func:`stabilisation` / :func:`lsfd` / :func:`identify`: the
   polyreference least-squares complex frequency-domain estimator (pLSCF, "PolyMAX";
   Peeters, Van der Auweraer, Guillaume & Leuridan, Shock Vib. 11, 2004) on all FRFs at
@@ -155,7 +155,7 @@ def _modal_data(frfs: FRFData, freqs, zetas, constants: np.ndarray, real: bool) 
     return modes, np.asarray(complexity)
 
 
-# -- SDOF: eqs. (3.34)–(3.37) ----------------------------------------------------------
+# -- SDOF: eq. 3.34, eq. 3.35, eq. 3.36, eq. 3.37 --------------------------------------
 
 
 def _indicator(h: np.ndarray, usable: np.ndarray) -> np.ndarray:
@@ -199,13 +199,13 @@ def _half_power_zeta(f: np.ndarray, s: np.ndarray, k: int) -> float:
 
 
 def _inverse_fit(w: np.ndarray, h: np.ndarray) -> tuple[float, float, complex, float]:
-    """ω_r, ζ and modal constant A of 1/H = (ω_r² − ω² + 2iζω_r ω)/A, eqs. (3.35)–(3.36).
+    """ω_r, ζ and modal constant A of 1/H = (ω_r² − ω² + 2iζω_r ω)/A, eq. 3.35, eq. 3.36.
 
-    Eq. (3.36) ties the coefficients: a = −1/A, b = 2iζω_r/A, c = ω_r²/A with one complex
+    The coefficients of eq. 3.36 are tied: a = −1/A, b = 2iζω_r/A, c = ω_r²/A with one complex
     A (= 1/m per unit force; φ_out φ_in for a mode, complex for a complex one), so
     c/a = −ω_r² is real and b/a
     imaginary. Written as A/H − ω_r² − iω g = −ω² with g = 2ζω_r the fit is linear in
-    Re A, Im A, ω_r², g (four real unknowns), and eq. (3.37) gives ζ = g/(2ω_r). A free
+    Re A, Im A, ω_r², g (four real unknowns), and eq. 3.37 gives ζ = g/(2ω_r). A free
     complex a, b, c would be ill-conditioned over a narrow band: a 0.3 % offset from the
     other modes moves ω_r by tens of per cent. Rows are weighted by |H| so that the
     error is relative, |1 − H(ω_r² − ω² + iωg)/A|, and lines far from resonance, where
@@ -222,7 +222,7 @@ def _inverse_fit(w: np.ndarray, h: np.ndarray) -> tuple[float, float, complex, f
         return math.nan, math.nan, constant, math.inf
     error = np.abs(h * (x[2] - w**2 + 1j * w * x[3]) / constant - 1)
     wr = math.sqrt(x[2])
-    return wr, x[3] / (2 * wr), constant, float(np.sqrt(np.mean(error**2)))  # eq. (3.37): ζ = g/(2ω_r)
+    return wr, x[3] / (2 * wr), constant, float(np.sqrt(np.mean(error**2)))  # eq. 3.37: ζ = g/(2ω_r)
 
 
 def _sdof_resonance(f, w, h, usable, indicator, k, bandwidths):
@@ -286,10 +286,10 @@ def sdof_fit(
 ) -> ModalData:
     """Natural frequency, damping and shape of each resonance by the inverse-FRF quadratic fit.
 
-    Near resonance r the receptance is that of one viscously damped DoF, eq. (3.34), so
+    Near resonance r the receptance is that of one viscously damped DoF, eq. 3.34, so
     1/H = aω² + bω + c (eq. 3.35) with a = −m/f, b = 2iζω_r m/f, c = ω_r² m/f (eq. 3.36),
     whence ω_r² = −c/a and ζ = −b/(2iω_r a) (eq. 3.37). The fit keeps the structure of
-    eq. (3.36), one complex scale A = −1/a times real ω_r² and ζ (see ``_inverse_fit``
+    eq. 3.36, one complex scale A = −1/a times real ω_r² and ζ (see ``_inverse_fit``
     for why). Mobility and accelerance are first divided by iω and −ω².
 
     Each FRF is fitted on the lines within ``bandwidths`` × ζf of the peak (at least 3
@@ -367,7 +367,7 @@ def sdof_fit(
         if a[0] + a[3] > b[0] - b[3]:
             warnings.warn(
                 f"the fitting bands of the resonances at {a[0]:.6g} and {b[0]:.6g} Hz overlap: the SDOF "
-                "assumption of eq. (3.34) does not hold there (use identify, pLSCF)",
+                "assumption of eq. 3.34 does not hold there (use identify, pLSCF)",
                 stacklevel=2,
             )
             break

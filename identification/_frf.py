@@ -5,7 +5,7 @@ Two ways to an FRF, as in thesis §2.1:
 - broadband excitation (random, burst, periodic): H1 or H2 and the coherence from
   block-averaged auto- and cross-spectra (Welch), :func:`frf_from_time`;
 - stepped sine: the fundamental Fourier coefficient of force and response at each step
-  frequency (thesis eqs. 2.1–2.2) and their ratio (eq. 2.3), :func:`frf_stepped_sine`.
+  frequency (thesis eq. 2.1, eq. 2.2) and their ratio (eq. 2.3), :func:`frf_stepped_sine`.
 
 With the block spectra X_b, Y_b of force and response (one-sided, n_in and n_out
 channels) and G_xx = Σ_b X_b X_bᴴ, G_yx = Σ_b Y_b X_bᴴ, G_yy = Σ_b |Y_b|²
@@ -196,11 +196,11 @@ def sine_coefficients(
 ) -> Complex[np.ndarray, "*channels"]:
     """Complex amplitude X of the fundamental, x(t) ≈ a₀/2 + Re(X e^{iωt}), X = a − ib.
 
-    The coefficients of eq. (2.1) at the excitation frequency ω = 2πf, fitted by least
+    The coefficients of eq. 2.1 at the excitation frequency ω = 2πf, fitted by least
     squares to x(t_n), t_n = n/fs, over the whole record. For a record of whole periods
-    the fit is the discrete Fourier sum of eq. (2.2) (a = 2a_j, b = 2b_j: this function
+    the fit is the discrete Fourier sum of eq. 2.2 (a = 2a_j, b = 2b_j: this function
     returns the physical amplitude); for any other length it still recovers a pure sine
-    plus offset exactly, where eq. (2.2) would leak.
+    plus offset exactly, where eq. 2.2 would leak.
 
     Raises ``ValueError`` for NaN samples, a frequency at or above fs/2 (Nyquist), or a
     record shorter than one period.
@@ -217,7 +217,7 @@ def sine_coefficients(
     if periods < 1:
         raise ValueError(f"the record holds {periods:.3g} periods of {frequency_hz} Hz; at least one is needed")
     wt = 2 * np.pi * frequency_hz * np.arange(arr.shape[0]) / fs
-    basis = np.column_stack([np.ones_like(wt), np.cos(wt), np.sin(wt)])  # eq. (2.1), fundamental only
+    basis = np.column_stack([np.ones_like(wt), np.cos(wt), np.sin(wt)])  # eq. 2.1, fundamental only
     coef, *_ = np.linalg.lstsq(basis, arr.reshape(arr.shape[0], -1), rcond=None)
     return (coef[1] - 1j * coef[2]).reshape(arr.shape[1:])
 
@@ -232,7 +232,8 @@ def frf_stepped_sine(
     outputs: Sensors,
     kind: str,
 ) -> FRFData:
-    """Stepped-sine FRFs: H(ω) = U(ω)/F(ω) of the fundamental coefficients, eqs. (2.1)–(2.3).
+    """Stepped-sine FRFs: H(ω) = U(ω)/F(ω) of the fundamental coefficients, eq. 2.1, eq. 2.2,
+    eq. 2.3.
 
     **Arguments:**
 
@@ -285,7 +286,7 @@ def frf_stepped_sine(
         raise ValueError(
             f"step {k[0]} ({freqs[k[0]]:.6g} Hz): no force at the step frequency (amplitude {level[k[0]]:.3g})"
         )
-    h = u_coef / f_coef[:, None]  # eq. (2.3)
+    h = u_coef / f_coef[:, None]  # eq. 2.3
     return FRFData(freqs, h[:, :, None], outputs, inputs, kind)
 
 

@@ -1,17 +1,19 @@
 """Phase resonance testing: mode indicator, simulated sine excitation, force appropriation.
 
 Thesis §2.1.2 and §3.4. A damped structure ``Mü + Du̇ + Ku = f̂ e^{iωt}`` (eq. 3.47)
-answers a sine excitation with ``û = H(ω) f̂``, ``H(ω) = (K − ω²M + iωD)⁻¹`` (eqs.
-3.48–3.49, 5.3–5.4). It vibrates in a pure normal mode when the real part of û vanishes
-(eqs. 3.50–3.53); the Mode Indicator Function (MIF, eq. 3.54) measures how close it is.
+answers a sine excitation with ``û = H(ω) f̂``, ``H(ω) = (K − ω²M + iωD)⁻¹`` (eq. 3.48,
+eq. 3.49, eq. 5.3, eq. 5.4). It vibrates in a pure normal mode when the real part of û
+vanishes: the force balances the damping forces (eq. 3.52) at an undamped natural
+frequency (eq. 3.53); the Mode Indicator Function (MIF, eq. 3.54) measures how close it is.
 Force appropriation picks the force components at a few exciters that come closest:
 
 - ``"thesis"``: the method of §3.4.2 — superpose single-point responses at all measured
-  DoFs, minimise the real-part response relative to the total (eqs. 3.55–3.61);
+  DoFs, minimise the real-part response relative to the total (eq. 3.55, eq. 3.56,
+  eq. 3.57, eq. 3.58, eq. 3.59, eq. 3.60, eq. 3.61);
 - ``"lewis_wrisley"``: force ∝ mass × deflection at the exciters (Lewis & Wrisley 1950);
 - ``"asher"``: null vector of the real part of the admittance matrix at the exciters, at a
   frequency where its determinant vanishes (Asher 1958);
-- ``"hunt"``: eigenproblem (3.58) on the exciter responses, weighted by the reduced mass
+- ``"hunt"``: eigenproblem of eq. 3.58 on the exciter responses, weighted by the reduced mass
   matrix (Hunt, Vold, Peterson & Williams 1984).
 
 Everything here is NumPy/SciPy in float64/complex128 (no JAX tracing): the methods are
@@ -130,7 +132,7 @@ def damping_matrix(K, M, damping) -> Float[np.ndarray, "n n"]:
     - an n×n array: D itself;
     - a number κ (s): stiffness-proportional ``D = κK`` (thesis §5.4.1 uses κ = 10⁻³ s);
     - a mapping ``{"mu": μ, "kappa": κ}`` (either may be left out): Rayleigh
-      ``D = μM + κK``, thesis eq. (1.29).
+      ``D = μM + κK``, thesis eq. 1.29.
 
     **Returns:** D, float64 n×n.
     """
@@ -142,7 +144,7 @@ def damping_matrix(K, M, damping) -> Float[np.ndarray, "n n"]:
             raise ValueError(f"damping mapping takes keys 'mu' and 'kappa', got {sorted(unknown)}")
         mu = _real_array("damping['mu']", damping.get("mu", 0.0), 0)
         kappa = _real_array("damping['kappa']", damping.get("kappa", 0.0), 0)
-        return float(mu) * M + float(kappa) * K  # eq. (1.29)
+        return float(mu) * M + float(kappa) * K  # eq. 1.29
     arr = np.asarray(damping)
     if arr.ndim == 0:
         return float(_real_array("damping", arr, 0)) * K
@@ -155,11 +157,11 @@ def damping_matrix(K, M, damping) -> Float[np.ndarray, "n n"]:
 def mode_indicator(
     u: Complex[np.ndarray, "*batch n"], weights: Float[np.ndarray, " n"] | None = None
 ) -> Float[np.ndarray, "*batch"]:
-    """Mode Indicator Function ×1000, thesis eq. (3.54) with footnote 3.
+    """Mode Indicator Function ×1000, thesis eq. 3.54 with footnote 3.
 
     ``MIF = 1000 · (1 − Σ_m w_m |Re û_m| |û_m| / Σ_m w_m |û_m|²)``: 1000 for a pure
     normal-mode (quadrature) response, 0 for a response entirely in phase with the force.
-    The thesis' eq. (3.54) is unweighted (``weights=None``); passing the DoF masses gives
+    The thesis' eq. 3.54 is unweighted (``weights=None``); passing the DoF masses gives
     the mass-weighted form of the indicator's origin, Breitbach (1973) (thesis ref. [15]).
 
     **Arguments:** ``u`` complex responses at the n measured DoFs (last axis; leading axes
@@ -180,7 +182,7 @@ def mode_indicator(
     den = np.sum(w * mag**2, axis=-1)
     if np.any(den <= 0):
         raise ValueError("u has no (weighted) response: MIF undefined")
-    return 1000.0 * (1.0 - np.sum(w * np.abs(u.real) * mag, axis=-1) / den)  # eq. (3.54)
+    return 1000.0 * (1.0 - np.sum(w * np.abs(u.real) * mag, axis=-1) / den)  # eq. 3.54
 
 
 def _receptance(K, M, D, omega: float, cols: np.ndarray) -> np.ndarray:
@@ -199,7 +201,8 @@ def sine_response(
     frequencies_hz: Float[np.ndarray, " f"],
     force: Float[np.ndarray, " n"] | Float[np.ndarray, "n c"],
 ) -> Complex[np.ndarray, "f n"] | Complex[np.ndarray, "f n c"]:
-    """Steady-state response to sine excitation over a sweep, thesis eqs. (3.47)–(3.49), (5.4).
+    """Steady-state response to sine excitation over a sweep, thesis eq. 3.47, eq. 3.48, eq. 3.49,
+    eq. 5.4.
 
     ``û(ω) = (K − ω²M + iωD)⁻¹ f̂`` with all force components in phase (eq. 3.48).
 
@@ -247,13 +250,14 @@ def _gram_eig(R: np.ndarray, T: np.ndarray) -> tuple[float, np.ndarray] | None:
 def force_thesis(
     U: Complex[np.ndarray, "n c"], forces: Float[np.ndarray, "e c"] | None = None
 ) -> Float[np.ndarray, " e"] | None:
-    """Optimised force vector of thesis §3.4.2, eqs. (3.55)–(3.59).
+    """Optimised force vector of thesis §3.4.2, eq. 3.55, eq. 3.56, eq. 3.57,
+    eq. 3.58, eq. 3.59.
 
     The C runs (columns of ``U``: complex responses at all n measured DoFs, at one
     resonance frequency) are superposed with weights φ minimising
     ``φᵀ Re(U)ᵀRe(U) φ / φᵀ (Re(U)ᵀRe(U) + Im(U)ᵀIm(U)) φ`` (eq. 3.57): the eigenvector
-    of the smallest eigenvalue of eq. (3.58). The force is ``[f̂¹ … f̂ᶜ] φ`` (eq. 3.59);
-    the predicted response ``U φ`` (eqs. 3.60–3.61) gives the predicted MIF.
+    of the smallest eigenvalue of eq. 3.58. The force is ``[f̂¹ … f̂ᶜ] φ`` (eq. 3.59);
+    the predicted response ``U φ`` (eq. 3.60, eq. 3.61) gives the predicted MIF.
 
     **Arguments:** ``U`` (n, C); ``forces`` (e, C) force vector of each run at the e
     exciters, or None for unit single-point runs (then e = C and the force is φ).
@@ -266,10 +270,10 @@ def force_thesis(
     if F.shape[1] != U.shape[1]:
         raise ValueError(f"forces has {F.shape[1]} runs (columns) but U has {U.shape[1]}")
     R = U.real.T @ U.real
-    pair = _gram_eig(R, R + U.imag.T @ U.imag)  # eqs. (3.57)–(3.58)
+    pair = _gram_eig(R, R + U.imag.T @ U.imag)  # eq. 3.57, eq. 3.58
     if pair is None:
         return None
-    f = F @ pair[1]  # eq. (3.59)
+    f = F @ pair[1]  # eq. 3.59
     return _normalise(f) if np.linalg.norm(f) > 0 else None
 
 
@@ -318,7 +322,7 @@ def force_hunt(
 ) -> Float[np.ndarray, " c"] | None:
     """Force from the real/total response eigenproblem at the exciters, Hunt et al. (1984).
 
-    As thesis eqs. (3.57)–(3.58) but, as the thesis describes Hunt's method (§5.4.1), with
+    As thesis eq. 3.57, eq. 3.58 but, as the thesis describes Hunt's method (§5.4.1), with
     the responses at the exciter locations only and weighted by the reduced mass matrix:
     ``(Re Hᵀ M_e Re H) φ = λ (Re Hᵀ M_e Re H + Im Hᵀ M_e Im H) φ``, smallest λ.
 
@@ -386,7 +390,7 @@ class Appropriation(eqx.Module):
 
 
 def _modes(K, M, n_modes: int | None):
-    lam, phi = sl.eigh(K, M)  # eq. (3.14), mass-normalised
+    lam, phi = sl.eigh(K, M)  # eq. 3.14 (eq. 3.53 at resonance), mass-normalised
     if np.any(lam <= 0):
         raise ValueError("K must be positive definite (rigid-body modes cannot be appropriated)")
     m = len(lam) if n_modes is None else _count("n_modes", n_modes)
@@ -538,7 +542,7 @@ def appropriate(
 ) -> list[Appropriation]:
     """Appropriated force and predicted MIF for each of the first modes of a damped model.
 
-    The simulated test of thesis §5.4.1: responses ``H(ω)F`` (eqs. 5.3–5.4) at the
+    The simulated test of thesis §5.4.1: responses ``H(ω)F`` (eq. 5.3, eq. 5.4) at the
     resonance frequencies, the force from ``method`` (see the module docstring), the MIF
     (eq. 3.54) of the resulting response at the ``sensors``.
 
@@ -692,6 +696,6 @@ def appropriation_report(
         "candidate_labels": [labels[c] for c in cand],
         "sensors": [int(s) for s in sens],
         "n_subsets": math.comb(len(cand), int(n_exciters)),
-        "mif": "1000*(1 - sum|Re u||u| / sum|u|^2) at the sensors, thesis eq. (3.54)",
+        "mif": "1000*(1 - sum|Re u||u| / sum|u|^2) at the sensors, thesis eq. 3.54",
         "modes": modes,
     }

@@ -8,9 +8,9 @@ computed, so the derivative rule can use the complete modal expansion.
 Derivative rule (all quantities at the solution, φ mass-normalised, full length):
 
     g_r  = (dK − λ_r dM) φ_r
-    dλ_r = φ_rᵀ g_r                                             thesis eq. (3.18)
-    dφ_r = Σ_{s≠r} φ_s (−φ_sᵀ g_r)/(λ_s − λ_r)                  eqs. (3.23), (3.28)
-           − ½ (φ_rᵀ dM φ_r) φ_r                                 eq. (3.29)
+    dλ_r = φ_rᵀ g_r                                             thesis eq. 3.18
+    dφ_r = Σ_{s≠r} φ_s (−φ_sᵀ g_r)/(λ_s − λ_r)                  eq. 3.23, eq. 3.28
+           − ½ (φ_rᵀ dM φ_r) φ_r                                 eq. 3.29
            − [0; K_bb⁻¹ (g_r)_b]                                 static part on massless DoFs
 
 The last term is exact for massless DoFs: writing dφ = Φc + [0; w], the rows of
@@ -222,7 +222,7 @@ def _eigh_jvp(primals, tangents, *, structure, n_modes, degenerate, rtol):
             lambda: jnp.diagonal(d),
         )
     dlam = dlam[:m]
-    # Eigenvector derivatives by the complete modal expansion, eqs. (3.23)-(3.31); the
+    # Eigenvector derivatives by the complete modal expansion, eq. 3.23, eq. 3.28, eq. 3.29; the
     # sums over s are formed in the standardised space (Φ = L⁻ᵀY), whose column signs
     # cancel in φ_s φ_sᵀ except for the s = r term.
     c = -_dual(e, g[:, :m])  # φ_sᵀ h_r for s ≠ r
@@ -256,7 +256,7 @@ def nelson(
 ) -> tuple[Float[Array, ""], Float[Array, " n"]]:
     """Derivative of one simple eigenpair by Nelson's method, using mode r only.
 
-    Nelson (1976), AIAA J. 14(9); thesis eqs. (3.15), (3.18). With ``f = −(dK − λ dM −
+    Nelson (1976), AIAA J. 14(9); thesis eq. 3.15, eq. 3.18. With ``f = −(dK − λ dM −
     dλ M) φ``, solve ``(K − λM) v = f`` with the component k of largest |φ_k| held at
     zero (this removes the singularity), then add ``c φ`` with ``c = −φᵀMv − ½φᵀ dM φ``
     to keep the mass normalisation. Works with singular M (massless DoFs).

@@ -272,11 +272,11 @@ def correct(
     mass_groups: Sequence[Sequence[int]] = (),
     beta: Float[Array, " J"] | None = None,
 ) -> Model:
-    """Apply substructure correction factors, thesis eq. (3.1).
+    """Apply substructure correction factors, thesis eq. 3.1.
 
     ``K = K0 + Σ_i α_i K_i`` and ``M = M0 + Σ_j β_j M_j``, where ``K_i`` (``M_j``) is
     the stiffness (mass) of the elements whose ids are listed in group i (j). Each
-    element's matrix is scaled by ``1 + Σ_i α_i [e ∈ G_i]``, which is exactly eq. (3.1).
+    element's matrix is scaled by ``1 + Σ_i α_i [e ∈ G_i]``, which is exactly eq. 3.1.
 
     **Arguments:** element-id groups (sequences of ints) and factor arrays of matching
     length. **Returns:** a new model; differentiable in ``alpha`` and ``beta``.

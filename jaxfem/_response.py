@@ -1,7 +1,7 @@
-"""Frequency response (receptance) of the damped structure, thesis eqs. (1.24), (1.47).
+"""Frequency response (receptance) of the damped structure, thesis eq. 1.24, eq. 1.47.
 
 With ``u(t) = û e^{iωt}`` and ``f(t) = f̂ e^{iωt}`` the equation of motion gives
-``û = H(ω) f̂`` with the dynamic stiffness of eq. (1.47), viscous damping D and a
+``û = H(ω) f̂`` with the dynamic stiffness of eq. 1.47, viscous damping D and a
 structural (hysteretic) loss factor η as complex stiffness (Ewins, *Modal Testing*,
 2nd ed., §2.2–2.3):
 

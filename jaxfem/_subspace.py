@@ -20,8 +20,8 @@ differentiates them exactly.
 
 Derivative of a converged mode r (φ mass-normalised, g_r = (dK − λ_r dM) φ_r):
 
-    dλ_r = φ_rᵀ g_r                                              thesis eq. (3.18)
-    dφ_r = Σ_{s≤m, s∉c(r)} φ_s (−φ_sᵀ g_r)/(λ_s − λ_r) − ½(φ_rᵀ dM φ_r) φ_r + z_r   eqs. (3.23)–(3.29)
+    dλ_r = φ_rᵀ g_r                                              thesis eq. 3.18
+    dφ_r = Σ_{s≤m, s∉c(r)} φ_s (−φ_sᵀ g_r)/(λ_s − λ_r) − ½(φ_rᵀ dM φ_r) φ_r + z_r   eq. 3.23, eq. 3.28, eq. 3.29
 
 with the sum over the m converged modes and z_r, M-orthogonal to them, the exact rest of
 the modal expansion: (K − λ_r M) z_r = b_r, b_r = h_r − M Φ_m Φ_mᵀ h_r,
@@ -214,12 +214,12 @@ def _ritz_jvp(primals, tangents, *, solution, index, structure, rtol, refine_tol
     lam, V = solution.lam, solution.basis
     lam_m, phi_m = lam[:m], V[:, :m]
     gk, gm = _tangent_matmul(K, dK, phi_m), _tangent_matmul(M, dM, phi_m)
-    # Eigenvalue derivatives, eq. (3.18), cluster means as in jaxfem.eigh.
+    # Eigenvalue derivatives, eq. 3.18, cluster means as in jaxfem.eigh.
     cluster = _clusters(lam_m, rtol)
     same = cluster[:, None] == cluster[None, :]
     d = jnp.sum(phi_m * (gk - lam_m * gm), axis=0)
     dlam_m = (same.astype(d.dtype) @ d) / same.sum(axis=1).astype(d.dtype)
-    # Modal expansion over the converged modes, eqs. (3.23)-(3.29).
+    # Modal expansion over the converged modes, eq. 3.23, eq. 3.28, eq. 3.29.
     lam_r, phi_r = lam_m[index], phi_m[:, index]
     g = gk[:, index] - lam_r * gm[:, index]
     h = -g + dlam_m[index] * M.matmul(phi_r)
