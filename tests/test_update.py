@@ -101,7 +101,7 @@ def test_noise_within_derived_tolerance(setup):
     res = update(model, test, pset)
     problem = build_problem(model, ModalData(f[:10], shapes[:, :10], sensors), pset)
     theta = jnp.log1p(jnp.asarray(TRUE_ALPHA))
-    sigma = parameter_std(problem, theta, Noise(shape=sigma_phi, frequency=2 * sigma_f))  # σ_λ/λ = 2σ_f
+    sigma = parameter_std(problem, theta, Noise(relative=sigma_phi, frequency=2 * sigma_f))  # σ_λ/λ = 2σ_f
     err = np.abs(res.alpha - TRUE_ALPHA)
     assert np.all(err <= 5 * sigma), (err, sigma)
     assert np.all(sigma < 0.05)  # the tolerance is meaningful, not vacuous

@@ -95,7 +95,7 @@ def test_garteur_noise_within_derived_tolerance(garteur):
     assert res.converged
     problem = build_problem(model, ModalData(f, shapes, sensors), pset)
     theta = jnp.log1p(jnp.asarray(GARTEUR_TRUTH))
-    sigma = parameter_std(problem, theta, Noise(shape=sigma_phi, frequency=2 * sigma_f))  # σ_λ/λ = 2σ_f
+    sigma = parameter_std(problem, theta, Noise(relative=sigma_phi, frequency=2 * sigma_f))  # σ_λ/λ = 2σ_f
     err = np.abs(res.alpha - GARTEUR_TRUTH)
     assert np.all(err <= 5 * sigma), (err, sigma)
     assert np.all(sigma < 0.1)

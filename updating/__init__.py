@@ -12,7 +12,6 @@ from ._correlation import pair_modes as pair_modes
 from ._correlation import pair_modes_masked as pair_modes_masked
 from ._correlation import serep as serep
 from ._sensitivity import Identifiability as Identifiability
-from ._sensitivity import Noise as Noise
 from ._sensitivity import Recovery as Recovery
 from ._sensitivity import Sensitivities as Sensitivities
 from ._sensitivity import identifiability as identifiability
@@ -45,5 +44,9 @@ from ._prediction import predict_frf as predict_frf
 from ._residuals import Problem as Problem
 from ._residuals import residuals as residuals
 from ._result import UpdateResult as UpdateResult
+from ._simulation import Noise as Noise
+from ._simulation import perturb as perturb
+from ._simulation import simulate_test as simulate_test
 from ._solve import build_problem as build_problem
+from ._solve import n_model_modes as n_model_modes
 from ._solve import update as update

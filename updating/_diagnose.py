@@ -33,7 +33,6 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
 
 import jaxfem
 from identification import ModalData
@@ -54,6 +53,8 @@ from ._effects import (
     masters,
     total_mass,
 )
+from ._eigensolvers import Dense
+from ._engine import Settings, run
 from ._localisation import group_scores, reduction, residual_forces
 from ._parameters import Options, Parameter, Parameterisation, ParameterSet
 from ._report import json_number
@@ -72,7 +73,9 @@ class DiagnoseOptions:
     best of each kind; ``max_structural``:
     joints and released supports fitted (nearest the localised error); ``max_nodes``:
     grids tried for added masses and springs. ``min_score`` (% of held-out error removed)
-    and ``min_delta_aic``: evidence an effect needs to be warranted.
+    and ``min_delta_aic``: evidence an effect needs to be warranted. Every fit is the
+    engine's Levenberg–Marquardt loop (:mod:`updating._engine`), converged when no factor
+    changes by more than ``tolerance``, at most ``max_steps`` steps.
     """
 
     noise_freq: float = 0.002
@@ -85,8 +88,13 @@ class DiagnoseOptions:
     min_score: float = 20.0
     min_delta_aic: float = 10.0
     max_steps: int = 30
+    tolerance: float = 1e-5
     kinds: tuple[str, ...] = ("stiffness", "mass", "joint", "added_mass", "boundary_spring",
                               "frequency_dependent_stiffness")
+
+    @property
+    def settings(self) -> Settings:
+        return Settings(False, self.tolerance, self.max_steps, self.max_steps)
 
 
 @dataclass(eq=False)
@@ -127,12 +135,11 @@ def _cost_rows(theta, problem: Problem, mask, ev):
     return cost + penalty
 
 
-def _solve_one(theta0, problem: Problem, max_steps: int):
-    solver = optx.LevenbergMarquardt(rtol=1e-5, atol=1e-6)
-    sol = optx.least_squares(lambda t, p: residuals(t, p)[0], solver, theta0, problem,
-                             options={"jac": "fwd"}, max_steps=max_steps, throw=False)
-    theta = sol.value
-    ev = evaluate(theta, problem)  # pairing does not depend on the mask: one eigen solve for both costs
+def _solve_one(theta0, problem: Problem, settings: Settings):
+    """One fit by the engine; the fitted and the held-out cost from its last evaluation
+    (pairing does not depend on the mask: one eigen solve for both)."""
+    state = run(theta0, problem, Dense(), jnp.zeros(0), settings)
+    theta, ev = state.theta, state.evaluation
     fit, held = (_cost_rows(theta, problem, mask, ev) for mask in (problem.active, ~problem.active))
     return theta, fit, held, ev.lam_a, ev.paired, ev.mac
 
@@ -170,7 +177,8 @@ def _fold_masks(n: int, folds: int) -> list[np.ndarray]:
     return [np.ones(n, bool)] + [ids % folds != k for k in range(min(folds, n))]
 
 
-def _run(fits: _Fits, problem: Problem, exts: list, theta0s: list, masks, max_steps, keep=None) -> list[dict]:
+def _run(fits: _Fits, problem: Problem, exts: list, theta0s: list, masks, settings: Settings,
+         keep=None) -> list[dict]:
     """Fit every extension on all modes, then on every fold (held-out mask) if
     ``keep(cost)`` (default: always); the folds start at the all-modes fit.
 
@@ -181,7 +189,7 @@ def _run(fits: _Fits, problem: Problem, exts: list, theta0s: list, masks, max_st
     def fit(ext, th, m):
         p = eqx.tree_at(lambda q: (q.extension, q.active), problem, (ext, jnp.asarray(m)),
                         is_leaf=lambda x: x is None)
-        return fits.solve(jnp.asarray(th), p, max_steps)
+        return fits.solve(jnp.asarray(th), p, settings)
 
     lam_e = np.asarray(problem.lam_e)
 
@@ -347,7 +355,7 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
 
     # -- baseline: the engineer's parameters fitted on all modes and on each fold
     say(f"baseline fit ({n_b} parameters, {len(masks) - 1}-fold cross-validation over {ne} modes)")
-    base = _run(fits, problem, [zero], [np.zeros(n_b + 1)], masks, options.max_steps)[0]
+    base = _run(fits, problem, [zero], [np.zeros(n_b + 1)], masks, options.settings)[0]
     theta_b = base["theta"][:n_b]
 
     # -- screening Jacobian at the baseline: every element's stiffness and mass, dormant ones
@@ -382,14 +390,14 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
         if group:
             say(f"  {family}: {len(group)} candidates × {len(masks)} fits ({time.perf_counter() - start:.0f} s)")
             for c, res in zip(group, _run(fits, problem, [c.ext for c in group], [theta_start(c) for c in group],
-                                          masks, options.max_steps, keep(group[0].ext.n_params))):
+                                          masks, options.settings, keep(group[0].ext.n_params))):
                 c.result = res
     for c in short:
         if c.family == "structural":
             say(f"  {c.effect.kind} {c.effect.where()} ({time.perf_counter() - start:.0f} s)")
             p = build_problem(c.model, test, pset)
             c.theta0 = _scan_start(fits, p, c.ext, theta_b)
-            c.result = _run(fits, p, [c.ext], [theta_start(c)], masks, options.max_steps, keep(1))[0]
+            c.result = _run(fits, p, [c.ext], [theta_start(c)], masks, options.settings, keep(1))[0]
 
     effects, ranked = _evidence(short, base, n_b, n_rows, sigma2, mass, options)
     best = ranked[0].effect if effects and effects[0]["warranted"] else None
@@ -643,7 +651,7 @@ def _flat(theta, problem: Problem):
 def _baseline_columns(problem: Problem, theta, n_b: int) -> np.ndarray:
     if n_b == 0:
         return np.zeros((len(_row_modes(problem)), 0))
-    J = jax.jit(jax.jacfwd(_flat))(jnp.asarray(theta), problem)
+    J = Compiled(jax.jacfwd(_flat))(jnp.asarray(theta), problem)
     return np.asarray(J)[:, :n_b]
 
 

@@ -19,6 +19,7 @@ import numpy as np
 import jaxfem
 from jaxfem import Model
 
+from ._compiled import Compiled
 from ._residuals import Problem, residuals
 
 
@@ -50,12 +51,17 @@ def parameter_reduction(problem: Problem, theta=None) -> np.ndarray:
     n_p = len(problem.parameterisation.parameters)
     theta = jnp.zeros(n_p) if theta is None else theta
 
-    def stacked(t):
-        eps, _ = residuals(t, problem)
-        return jnp.concatenate([jnp.ravel(v) for k, v in sorted(eps.items()) if k != "regularisation"])
-
-    r, J = jax.jit(lambda t: (stacked(t), jax.jacfwd(stacked)(t)))(theta)
+    r, J = Compiled(_stacked_with_jacobian)(theta, problem)
     return reduction(np.asarray(r), np.asarray(J))
+
+
+def _stacked(theta, problem: Problem):
+    eps, _ = residuals(theta, problem)
+    return jnp.concatenate([jnp.ravel(v) for k, v in sorted(eps.items()) if k != "regularisation"])
+
+
+def _stacked_with_jacobian(theta, problem: Problem):
+    return _stacked(theta, problem), jax.jacfwd(_stacked)(theta, problem)
 
 
 def residual_forces(model: Model, lam_e, phi_e, C) -> tuple[dict[int, float], dict[int, float]]:

@@ -3,15 +3,10 @@
 The reference model gives the "measured" modes: its lowest modes at the sensors (surplus
 DoFs dropped, no reduction, §4.3.3.2). The initial model is the reference with the
 modelling error of Table 4.6 (K̃_0 = K_0 + α K_group). Each sample adds measurement
-errors of one category and magnitude (Table 4.7) to the first n modes
-
-    relative   φ̃ = φ × (1 + δ),  δ ~ N(0, σ²) per component
-    absolute   φ̃ = φ + δ,        δ ~ U(−a, a)·max|φ_n| per component of mode n
-    frequency  f̃ = f (1 + δ),    δ ~ N(0, σ²) per mode
-
-and is updated: in-loop masked pairing and the Optimistix loop of :func:`updating.update`
-(same residual, weights, stopping rule), written as one jitted function of the measured
-data, vmapped over ``lockstep`` samples; the sample axis is sharded over the JAX devices
+errors of one category and magnitude (Table 4.7, :mod:`updating._simulation`: relative
+and absolute shape errors, frequency errors on λ = ω²) to the first n modes, and is
+updated by the engine of :func:`updating.update` (:func:`updating._engine.run`: same
+residual, weights, stopping rule), vmapped over ``lockstep`` samples; the sample axis is sharded over the JAX devices
 (``shard_map``), the lockstep batches of a device run in sequence. Its eigenproblems are
 solved by subspace iteration (:func:`jaxfem.subspace`) warm-started from the Ritz basis
 of the error-free update (where every noisy sample starts) and then from the last
@@ -41,23 +36,21 @@ from importlib import resources
 from pathlib import Path
 
 import equinox as eqx
-import equinox.internal as eqxi
 import jax
 import jax.numpy as jnp
-import jax.scipy.linalg as jsl
-import lineax as lx
 import numpy as np
-import optimistix as optx
 import tomllib
-from lineax._solver.misc import pack_structures
 
 import jaxfem
-from identification import ModalData, Sensors, observation_matrix
+from identification import Sensors
 from jaxfem.io import read_bdf
 
 from ._compiled import Compiled
+from ._eigensolvers import LOCKSTEP, AbstractEigensolver, Refined, Subspace
+from ._engine import Settings, run
 from ._parameters import Options, Parameter, ParameterSet
-from ._residuals import Problem, pair, paired_evaluation, rows
+from ._residuals import Problem
+from ._simulation import Noise, perturb, simulate_test
 from ._solve import build_problem
 
 CATEGORIES = ("relative", "absolute", "frequency")
@@ -233,56 +226,20 @@ def default_study(modelling_error: int = 1, **changes) -> Study:
 # --------------------------------------------------------------------------- the batched update
 
 
-class _Aux(eqx.Module):
-    ev: object  # residuals.Evaluation at the evaluated point
-    basis: jax.Array  # Ritz basis there (the warm start of the next solve)
-    solved: jax.Array  # the eigen solve converged
-    refreshed: jax.Array  # it needed a fresh preconditioner
-
-
 @dataclasses.dataclass(frozen=True)
-class _Settings:
+class _Kind:
+    """How a group's samples are solved: ``subspace`` or ``full`` eigensolves, the
+    engine's settings, the shift σ and the samples per vmap batch on each device."""
+
     eigensolver: str
+    settings: Settings
     shift: float
-    max_iterations: int
-    tolerance: float
-    gauss_newton: bool
-    lockstep: int  # samples updated together under vmap on each device
+    lockstep: int
 
-
-LOCKSTEP = "lockstep"  # vmap axis of the samples updated together
-
-
-def _residual(theta, args, settings: _Settings):
-    """ε(θ) of :func:`updating.residuals` with the modes of a warm-started subspace solve
-    or of a full dense solve (:func:`jaxfem.dense_modes`): pair first, then differentiate
-    the paired modes (:func:`jaxfem.ritz_modes`)."""
-    problem, warm, inverse = args
-    K, M = jaxfem.assemble(problem.model(theta))
-    if settings.eigensolver == "full":
-        sol = jaxfem.dense_modes(K, M, problem.n_model, shift=settings.shift)
-    else:
-        Ks, Ms = jax.lax.stop_gradient((K, M))  # the solve carries no derivative (ritz_modes does)
-        solve = lambda start, inverse: jaxfem.subspace(Ks, Ms, start, problem.n_model, shift=settings.shift,
-                                                       preconditioner=inverse)
-        sol = solve(warm, inverse)
-        # Too far from the preconditioner's model (a fit running away): go on from the
-        # basis reached with (K − σM)⁻¹ of this model; the next evaluation tries the fixed one again.
-        # Decided for the whole lockstep batch, so that under vmap it stays a branch.
-        refreshed = ~sol.converged
-        anywhere = jax.lax.psum(refreshed.astype(jnp.int32), LOCKSTEP) > 0 if settings.lockstep > 1 else refreshed
-        sol = jax.lax.cond(anywhere,
-                           lambda: solve(sol.basis, jaxfem.shifted_inverse(Ks, Ms, shift=settings.shift)),
-                           lambda: sol)
-    phi_s = problem.C @ sol.basis[:, : problem.n_model]
-    lam = sol.lam[: problem.n_model]
-    index, paired = pair(lam, phi_s, problem)
-    safe = jnp.where(paired, index, 0)
-    lam_a, phi_a = jaxfem.ritz_modes(K, M, sol, safe)
-    ev = paired_evaluation(lam_a, problem.C @ phi_a, index, paired, lam, phi_s, problem)
-    basis = warm if settings.eigensolver == "full" else sol.basis
-    refreshed = jnp.asarray(False) if settings.eigensolver == "full" else refreshed
-    return rows(theta, problem, ev), _Aux(ev, basis, sol.converged, refreshed)
+    def solver(self, start: _Start) -> AbstractEigensolver:
+        if self.eigensolver == "full":
+            return Refined(self.shift)
+        return Subspace(start.inverse, self.shift, self.lockstep)
 
 
 class _Outcome(eqx.Module):
@@ -297,69 +254,6 @@ class _Outcome(eqx.Module):
     mac: jax.Array
 
 
-@jax.custom_jvp
-def _attach(theta, eps, jac):
-    """``eps`` whose derivative in θ is ``jac``: the linearisation Optimistix keeps in its
-    loop state is then the small Jacobian, not every intermediate of the eigen solve
-    (dense K, its factor, …), which a batched ``while_loop`` would copy at every step."""
-    return eps
-
-
-@_attach.defjvp
-def _attach_jvp(primals, tangents):
-    _, eps, jac = primals
-    return eps, jac @ tangents[0]
-
-
-def _with_jacobian(theta, args, settings: _Settings):
-    """The residual as one vector with its forward-mode Jacobian computed in the same pass."""
-    def flat(t):
-        eps, aux = _residual(t, args, settings)
-        return jnp.concatenate([jnp.ravel(v) for v in jax.tree.leaves(eps)]), aux
-
-    t = jax.lax.stop_gradient(theta)
-    eps, lin, aux = jax.linearize(flat, t, has_aux=True)
-    jac = jax.vmap(lin, out_axes=1)(jnp.eye(t.shape[0], dtype=t.dtype))
-    return _attach(theta, eps, jac), aux
-
-
-@jax.custom_batching.sequential_vmap
-def _householder(matrix):
-    h, taus = jnp.linalg.qr(matrix, mode="raw")
-    return h.mT, taus
-
-
-@jax.custom_batching.sequential_vmap
-def _householder_solve(a, taus, b):
-    n = a.shape[1]
-    return jsl.solve_triangular(a[:n], jax.lax.linalg.ormqr(a, taus, b[:, None], transpose=True)[:n, 0])
-
-
-class _QR(lx.QR):
-    """``lineax.QR`` (Optimistix' choice for the damped least-squares step, thesis eq. 3.71)
-    for the overdetermined systems of the loop, (i) without lineax' check that the
-    residual's structure equals the operator's: inside ``shard_map`` one of them carries
-    the manual mesh and the other not (lineax 0.1.1: "pytree does not match
-    out_structure"); (ii) with LAPACK kernels that loop over a ``vmap`` batch instead of
-    batching the call, which can deadlock XLA-CPU inside a batched loop (``jaxfem._lapack``)."""
-
-    def init(self, operator, options):
-        matrix = operator.as_matrix()
-        if matrix.shape[1] > matrix.shape[0]:
-            raise NotImplementedError("more parameters than residuals")
-        return _householder(matrix), eqxi.Static(False), pack_structures(operator)
-
-    def compute(self, state, vector, options):
-        (a, taus), _, packed = state
-        x = _householder_solve(a, taus, jnp.concatenate([jnp.ravel(v) for v in jax.tree.leaves(vector)]))
-        leaves, treedef = packed.value
-        _, structure = jax.tree.unflatten(treedef, leaves)
-        shapes = [s.shape for s in jax.tree.leaves(structure)]
-        parts = jnp.split(x, np.cumsum([int(np.prod(s)) for s in shapes])[:-1])
-        return jax.tree.unflatten(jax.tree.structure(structure), [p.reshape(s) for p, s in zip(parts, shapes)]), \
-            lx.RESULTS.successful, {}
-
-
 class _Start(eqx.Module):
     """Where updates start: factors θ, the Ritz basis there (the first warm start) and
     the fixed preconditioner (K(θ) − σM)⁻¹ of every subspace solve (:func:`jaxfem.shifted_inverse`)."""
@@ -369,88 +263,38 @@ class _Start(eqx.Module):
     inverse: jax.Array
 
 
-def _update_one(lam_e, phi_e, valid, problem: Problem, start: _Start, settings: _Settings) -> _Outcome:
-    """The updating loop of :func:`updating.update` for one sample, as a jittable function:
-    Optimistix LM (or GN) stepped in a ``while_loop``; convergence when an accepted step
-    changes no factor by more than the tolerance; at most ``max_iterations`` accepted steps.
-    Starts from ``start``; a padding sample (``valid`` False) takes no step."""
+def _update_one(lam_e, phi_e, valid, problem: Problem, start: _Start, kind: _Kind) -> _Outcome:
+    """One sample: the engine (:func:`updating._engine.run`) on the measured data
+    (λ_e, φ_e) from ``start``; a padding sample (``valid`` False) takes no step."""
     problem = eqx.tree_at(lambda p: (p.lam_e, p.phi_e), problem, (lam_e, phi_e))
-    solver = (optx.GaussNewton if settings.gauss_newton else optx.LevenbergMarquardt)(
-        rtol=1e-12, atol=1e-12, linear_solver=_QR())
-    fn = lambda t, a: _with_jacobian(t, a, settings)
-    theta, inverse = start.theta, start.inverse
-    # Plain shapes: inside shard_map eval_shape attaches the manual mesh, which lineax
-    # would then find missing on the residual ("pytree does not match out_structure").
-    f_struct, aux_struct = jax.tree.map(lambda s: jax.ShapeDtypeStruct(s.shape, s.dtype),
-                                        jax.eval_shape(fn, theta, (problem, start.basis, inverse)))
-    options = {"jac": "fwd"}
-    state = solver.init(fn, theta, (problem, start.basis, inverse), options, f_struct, aux_struct, frozenset())
-    state, static = eqx.partition(state, eqx.is_array)  # the state holds a jaxpr: carry only arrays
-
-    def cond(c):
-        return ~c["done"]
-
-    def body(c):
-        new, state, _ = solver.step(fn, c["theta"], (problem, c["warm"], inverse), options,
-                                    eqx.combine(c["state"], static), frozenset())
-        state = eqx.filter(state, eqx.is_array)
-        moved = jnp.any(new != c["theta"])
-        change = jnp.max(jnp.abs(jnp.expm1(new) - jnp.expm1(c["theta"])))
-        accepted = c["accepted"] + moved.astype(jnp.int32)
-        # Converged: an accepted step changed no factor by more than the tolerance, or
-        # Optimistix' own Cauchy test (rtol = atol = 1e-12) ended the loop.
-        converged = (moved & (change <= settings.tolerance)) | (state.terminate & ~moved)
-        steps = c["steps"] + 1
-        done = converged | (accepted >= settings.max_iterations) | (steps >= 4 * settings.max_iterations) \
-            | ~jnp.all(jnp.isfinite(new))
-        return {"theta": new, "state": state, "warm": state.aux.basis, "accepted": accepted, "steps": steps,
-                "converged": converged, "change": jnp.where(moved, change, c["change"]),
-                "solved": c["solved"] & state.aux.solved, "refreshes": c["refreshes"] + state.aux.refreshed.astype(jnp.int32),
-                "done": done}
-
-    c0 = {"theta": theta, "state": state, "warm": start.basis, "accepted": jnp.asarray(0), "steps": jnp.asarray(0),
-          "converged": jnp.asarray(False), "change": jnp.asarray(jnp.inf, theta.dtype), "solved": jnp.asarray(True),
-          "refreshes": jnp.asarray(0), "done": ~valid}
-    c = jax.lax.while_loop(cond, body, c0)
-    ev = eqx.combine(c["state"], static).aux.ev
-    return _Outcome(c["theta"], c["accepted"], c["converged"], c["change"], c["solved"], c["refreshes"], ev.paired,
-                    ev.lam_a,
-                    ev.mac)
+    s = run(start.theta, problem, kind.solver(start), start.basis, kind.settings, ~valid)
+    ev = s.evaluation
+    return _Outcome(s.theta, s.accepted, s.converged, s.change, s.solved, s.refreshes, ev.paired, ev.lam_a, ev.mac)
 
 
-def _perturb(key, category, magnitude, f0, phi0):
-    """One sample's measured data: Table 4.7 errors of one category on (f0, φ0)."""
-    k_phi, k_f = jax.random.split(key)
-    rel = jax.random.normal(k_phi, phi0.shape, dtype=phi0.dtype)
-    uni = jax.random.uniform(k_phi, phi0.shape, dtype=phi0.dtype, minval=-1.0, maxval=1.0)
-    peak = jnp.max(jnp.abs(phi0), axis=0)
-    phi = jnp.where(category == 0, phi0 * (1 + magnitude * rel),
-                    jnp.where(category == 1, phi0 + magnitude * peak * uni, phi0))
-    df = jax.random.normal(k_f, f0.shape, dtype=f0.dtype)
-    f = f0 * jnp.where(category == 2, 1 + magnitude * df, 1.0)
-    return f, phi
+def _measure(key, category, magnitude, lam0, phi0):
+    """One sample's measured data: the Table 4.7 error of one category (index in
+    ``CATEGORIES``) and magnitude on (λ0, φ0) (:func:`updating._simulation.perturb`)."""
+    noise = Noise(*(jnp.where(category == i, magnitude, 0.0) for i in range(len(CATEGORIES))))
+    return perturb(key, noise, lam0, phi0)
 
 
 class _Group:
     """Everything one n-mode group needs: the problem, the warm start, compiled batches."""
 
     def __init__(self, study: Study, n: int, reference, initial, sensors: Sensors, devices):
-        lam_ref, phi_ref = jaxfem.modes(reference, n)
-        shapes = np.asarray(observation_matrix(reference, sensors)[0] @ phi_ref)
-        test = ModalData(np.asarray(jaxfem.frequencies_hz(lam_ref)), shapes, sensors)
+        test = simulate_test(reference, sensors, n)
         opts = study.parameters.options
         n_free = initial.n_dof - len(initial.dofs.massless)
-        n_model = opts.n_model_modes or min(n_free - 1, n + 6)
-        pset = dataclasses.replace(study.parameters, options=dataclasses.replace(opts, n_model_modes=n_model))
-        self.problem = build_problem(initial, test, pset)
-        self.f0, self.phi0 = jnp.asarray(test.frequencies_hz), jnp.asarray(shapes)
+        self.problem = build_problem(initial, test, study.parameters)
+        n_model = self.problem.n_model
+        self.f0, self.phi0 = jnp.asarray(test.frequencies_hz), jnp.asarray(test.shapes)
         q = min(n_free, max(2 * n_model, n_model + 8))
         lam0, basis = jaxfem.eigh(*jaxfem.assemble(initial), q)
         rigid = float(lam0[0]) < 1e-6 * float(lam0[n_model - 1])
         shift = -0.01 * float(lam0[n_model - 1]) if rigid else 0.0
-        self.settings = {kind: _Settings(kind, shift, opts.max_iterations, opts.tolerance,
-                                         opts.solver == "gauss-newton", study.lockstep)
-                         for kind in ("subspace", "full")}
+        self.kinds = {kind: _Kind(kind, Settings.from_options(opts), shift, study.lockstep)
+                      for kind in ("subspace", "full")}
         # Where every update starts: the initial model, and for the noisy samples the
         # error-free update (:meth:`sample_start`).
         self.origin = _Start(jnp.zeros(len(self.problem.parameterisation.parameters)), basis,
@@ -464,8 +308,8 @@ class _Group:
         per_call = len(devices) * study.lockstep
         self.batch = per_call * -(-study.chunk_size // per_call)
         self._batch = {k: Compiled(lambda l, p, v, prob, start, s=s: _sharded(l, p, v, prob, start, s, mesh))
-                       for k, s in self.settings.items()}
-        self._perturb = Compiled(jax.vmap(_perturb, in_axes=(0, 0, 0, None, None)))
+                       for k, s in self.kinds.items()}
+        self._measure = Compiled(jax.vmap(_measure, in_axes=(0, 0, 0, None, None)))
 
     def data(self, study: Study, start: int, stop: int):
         """Measured frequencies (Hz) and shapes of samples ``start:stop``."""
@@ -475,7 +319,8 @@ class _Group:
         mag = np.array([cells[i][1] for i in j // study.samples])
         base = jax.random.fold_in(jax.random.key(study.seed), self.n)
         keys = jax.vmap(lambda i: jax.random.fold_in(base, i))(jnp.asarray(j % study.samples))
-        return self._perturb(keys, jnp.asarray(cat), jnp.asarray(mag), self.f0, self.phi0)
+        lam, phi = self._measure(keys, jnp.asarray(cat), jnp.asarray(mag), (2 * jnp.pi * self.f0) ** 2, self.phi0)
+        return jaxfem.frequencies_hz(lam), phi
 
     def reference(self, kind: str) -> _Outcome:
         """The update of the error-free data from the initial model (one sample)."""
@@ -494,10 +339,10 @@ class _Group:
             if bool(ref.converged[0]) and bool(np.all(ref.paired[0])):
                 theta = jnp.asarray(ref.theta[0])
                 K, M = jaxfem.assemble(self.problem.model(theta))
-                settings = self.settings["subspace"]
-                sol = jaxfem.subspace(K, M, self.origin.basis, self.problem.n_model, shift=settings.shift)
+                shift = self.kinds["subspace"].shift
+                sol = jaxfem.subspace(K, M, self.origin.basis, self.problem.n_model, shift=shift)
                 if bool(sol.converged):
-                    self._sample_start = _Start(theta, sol.basis, jaxfem.shifted_inverse(K, M, shift=settings.shift))
+                    self._sample_start = _Start(theta, sol.basis, jaxfem.shifted_inverse(K, M, shift=shift))
         return self._sample_start
 
     def update(self, f, phi, kind: str, start: _Start) -> _Outcome:
@@ -514,20 +359,20 @@ class _Group:
         return jax.tree.map(lambda *x: np.concatenate([np.asarray(v) for v in x])[:b], *out)
 
 
-def _sharded(lam, phi, valid, problem, start, settings: _Settings, mesh) -> _Outcome:
+def _sharded(lam, phi, valid, problem, start, kind: _Kind, mesh) -> _Outcome:
     """:func:`_update_one` over the samples: the sample axis sharded over the mesh's
-    devices (``shard_map``); on each device ``vmap`` over ``settings.lockstep`` samples at
+    devices (``shard_map``); on each device ``vmap`` over ``kind.lockstep`` samples at
     a time (their loops run until the slowest is done), those batches in sequence. One
     sample is not vmapped: a vmap of one was measured 4.6× slower on XLA-CPU (tree, 10
     modes: 0.48 s against 0.10 s per sample)."""
     shared, static = eqx.partition((problem, start), eqx.is_array)
-    v = settings.lockstep
+    v = kind.lockstep
 
     def local(lam, phi, valid, shared):
         problem, start = eqx.combine(shared, static)
         if v == 1:
-            return jax.lax.map(lambda x: _update_one(*x, problem, start, settings), (lam, phi, valid))
-        update = jax.vmap(lambda *x: _update_one(*x, problem, start, settings), axis_name=LOCKSTEP)
+            return jax.lax.map(lambda x: _update_one(*x, problem, start, kind), (lam, phi, valid))
+        update = jax.vmap(lambda *x: _update_one(*x, problem, start, kind), axis_name=LOCKSTEP)
         out = jax.lax.map(lambda x: update(*x), jax.tree.map(lambda a: a.reshape(-1, v, *a.shape[1:]),
                                                             (lam, phi, valid)))
         return jax.tree.map(lambda a: a.reshape(-1, *a.shape[2:]), out)

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
-from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -30,6 +29,7 @@ from ._compiled import Compiled
 from ._parameters import Parameter, ParameterSet, parameterise
 from ._residuals import Problem, evaluate, residuals
 from ._result import UpdateResult
+from ._simulation import Noise, simulate_test
 from ._solve import build_problem, update
 
 
@@ -232,30 +232,12 @@ def identifiability(
     return Identifiability(names, s, cond, cos, pairs, weakest, v, float(max_condition))
 
 
-class Noise(NamedTuple):
-    """Simulated measurement errors of §4.3.3.2 (Table 4.7), Gaussian, zero mean.
-
-    ``shape``: σ of δ_rel in φ̃ = φ × (1 + δ_rel), per component; ``frequency``: σ of
-    δ_freq in λ̃ = λ (1 + δ_freq), per mode.
-    """
-
-    shape: float = 0.0
-    frequency: float = 0.0
-
-
 def _simulate(model: Model, sensors: Sensors, parameters: ParameterSet, alpha: np.ndarray, n_modes: int,
               noise: Noise | None = None, key: PRNGKeyArray | None = None) -> ModalData:
-    """The lowest ``n_modes`` modes of the model with the factors α applied, at the sensors,
-    with the measurement errors of :class:`Noise` if given (Fig. 4.4, Fig. 4.23)."""
+    """The model with the factors α applied, measured by :func:`simulate_test` (Fig. 4.4)."""
     base, par = parameterise(model, parameters)
-    modes = jax.jit(lambda a: jaxfem.eigh(*jaxfem.assemble(par.apply(base, jnp.log1p(a))), n_modes))
-    lam, phi = modes(jnp.asarray(alpha))
-    shapes = jnp.asarray(observation_matrix(base, sensors)[0]) @ phi
-    if noise is not None:
-        k_phi, k_lam = jax.random.split(key)
-        shapes = shapes * (1.0 + noise.shape * jax.random.normal(k_phi, shapes.shape, dtype=shapes.dtype))
-        lam = lam * (1.0 + noise.frequency * jax.random.normal(k_lam, lam.shape, dtype=lam.dtype))
-    return ModalData(np.asarray(jaxfem.frequencies_hz(lam)), np.asarray(shapes), sensors)
+    truth = par.apply(base, jnp.log1p(jnp.asarray(alpha, dtype=jnp.float64)))
+    return simulate_test(truth, sensors, n_modes, noise, key)
 
 
 @dataclasses.dataclass
@@ -300,14 +282,17 @@ class Recovery:
 
 def parameter_std(problem: Problem, theta: Float[Array, " p"], noise: Noise) -> np.ndarray:
     """Linearised standard deviation of the factors α at θ for measurement noise: Cov θ = J⁺ Σ J⁺ᵀ,
-    Σ = diag(σ²) with σ = w σ_freq per eigenvalue row and σ_shape |φ_e,ij| / ‖φ_e,j‖ per
-    eigenvector row (eqs. 3.12, 3.21); σ_α = e^θ σ_θ."""
+    Σ = diag(σ²) with σ = w σ_freq per eigenvalue row (eq. 3.12) and, per eigenvector row
+    (eq. 3.21), the shape errors' σ over ‖φ_e,j‖: σ_rel |φ_e,ij| and a max_i |φ_e,ij| / √3
+    of the uniform absolute error; σ_α = e^θ σ_θ."""
     jac, ev = _jacobian(problem, theta)
     rows = np.asarray(ev.paired & problem.active)
     phi_e = np.asarray(problem.phi_e)
     sigma = {
         "eigenvalue": np.where(rows, np.asarray(problem.lam_weight) * noise.frequency, 0.0),
-        "eigenvector": np.where(rows[None, :], noise.shape * np.abs(phi_e) / np.linalg.norm(phi_e, axis=0), 0.0),
+        "eigenvector": np.where(rows[None, :], np.hypot(noise.relative * np.abs(phi_e),
+                                                        noise.absolute * np.max(np.abs(phi_e), axis=0) / np.sqrt(3))
+                                / np.linalg.norm(phi_e, axis=0), 0.0),
     }
     J = np.concatenate(list(jac.values()))
     s = np.concatenate([sigma[k].reshape(-1) for k in jac])

@@ -1,11 +1,9 @@
-"""The iterative updating loop: regularised least squares with Optimistix (thesis §3.2).
+"""An engineer's update (thesis §3.2): the problem from model, test and parameter file,
+the engine's loop (:mod:`updating._engine`), the result with its before/after pairings.
 
-``update`` minimises ½‖ε(θ)‖² (eq. 3.4 with the weights inside ε) by Levenberg–Marquardt
-or Gauss–Newton (the step of eq. 3.11), stepping the Optimistix solver one iteration at
-a time so that each iteration's parameters, frequency deviations, MACs and cost are
-recorded. The Jacobian comes from the implicit-differentiation rule of ``jaxfem.eigh``
-(forward mode). Convergence: max |α_κ − α_κ₋₁| ≤ tolerance over an accepted step
-(thesis §4.2.5.1, footnote 8: 1e-3).
+The residual, stopping rule and solver are the engine's: ½‖ε(θ)‖² (eq. 3.4) minimised by
+Levenberg–Marquardt or Gauss–Newton (eq. 3.11), converged when max |α_κ − α_κ₋₁| ≤
+tolerance over an accepted step (thesis §4.2.5.1, footnote 8: 1e-3).
 """
 
 from __future__ import annotations
@@ -14,10 +12,8 @@ import time
 from collections.abc import Callable
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
 
 import jaxfem
 from identification import ModalData, observation_matrix
@@ -26,8 +22,10 @@ from jaxfem._model import Opaque
 
 from ._compiled import Compiled
 from ._correlation import pair_modes
-from ._parameters import Parameterisation, ParameterSet, parameterise
-from ._residuals import Problem, auto_eigenvalue_weights, residuals
+from ._parameters import ParameterSet, parameterise
+from ._eigensolvers import Dense
+from ._engine import Settings, run
+from ._residuals import Problem, auto_eigenvalue_weights
 from ._result import Iteration, UpdateResult
 
 
@@ -50,9 +48,8 @@ def build_problem(model: Model, test: ModalData, parameters: ParameterSet,
     model, param = parameterise(model, parameters)
     C = observation_matrix(model, test.sensors)[0] if sensors_C is None else sensors_C
     shapes = np.real(test.real().shapes) if np.iscomplexobj(test.shapes) else np.asarray(test.shapes)
-    n_free = model.n_dof - len(model.dofs.massless)
     ne = len(test.frequencies_hz)
-    n_model = opts.n_model_modes or min(n_free, 2 * ne + 6)
+    n_model = n_model_modes(model, ne, opts.n_model_modes)
     values, structure = jaxfem.partition(model)
     problem = Problem(
         values=values,
@@ -78,6 +75,13 @@ def build_problem(model: Model, test: ModalData, parameters: ParameterSet,
     return problem
 
 
+def n_model_modes(model: Model, n_test: int, requested: int | None = None) -> int:
+    """Model modes computed for pairing with ``n_test`` test modes: ``requested``, else
+    2 n_test + 6 (room for crossing and spurious modes); at most the free DoFs."""
+    n_free = model.n_dof - len(model.dofs.massless)
+    return int(min(n_free, requested or 2 * n_test + 6))
+
+
 def _pairing(ev, test: ModalData, problem: Problem):
     """Exact (Hungarian) pairing of all computed model modes, for reports."""
     return pair_modes(np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model),
@@ -87,69 +91,40 @@ def _pairing(ev, test: ModalData, problem: Problem):
 
 def update(model: Model, test: ModalData, parameters: ParameterSet, *,
            progress: Callable[[Iteration], None] | None = None) -> UpdateResult:
-    """Update ``model`` against measured modes ``test`` (thesis §3.2, Fig. 3.1).
+    """Update ``model`` against measured modes ``test`` (thesis §3.2, Fig. 3.1): the engine
+    (:func:`updating._engine.run`) with the dense eigensolver, from α = 0.
 
     **Arguments:** the nominal model, the measured modes (sensors labelled by grid and
     direction), the parameters and options; ``progress`` is called after every
     accepted iteration. **Returns:** an :class:`UpdateResult`.
     """
     start = time.perf_counter()
-    opts = parameters.options
     problem = build_problem(model, test, parameters)
-    n_p = len(problem.parameterisation.parameters)
-    solver_cls = optx.LevenbergMarquardt if opts.solver == "levenberg-marquardt" else optx.GaussNewton
-    solver = solver_cls(rtol=1e-12, atol=1e-12)
-    fn = lambda theta, prob: residuals(theta, prob)
-    theta = jnp.zeros(n_p)
-    out_struct, aux_struct = jax.eval_shape(fn, theta, problem)
-    options = {"jac": "fwd"}
-    state = Compiled(solver.init)(fn, theta, problem, options, out_struct, aux_struct, frozenset())
-    step = Compiled(lambda t, s, p: solver.step(fn, t, p, options, s, frozenset()))
-    summary = Compiled(fn)
+    settings = Settings.from_options(parameters.options)
+    theta0 = jnp.zeros(len(problem.parameterisation.parameters))
 
-    evaluations = []
+    def report(k, alpha, cost, dev, mac):
+        progress(Iteration(k, alpha, dev, mac, cost))
 
-    def record(k, theta):
-        eps, ev = summary(theta, problem)
-        evaluations.append(ev)
-        cost = 0.5 * sum(float(jnp.sum(v**2)) for v in jax.tree.leaves(eps))
-        ratio = np.maximum(np.asarray(ev.lam_a) / np.asarray(problem.lam_e), 0.0)  # unpaired rows hold mode 0
-        dev = np.where(np.asarray(ev.paired), np.sqrt(ratio) - 1, np.nan)
-        it = Iteration(k, np.asarray(jnp.expm1(theta)), dev, np.where(np.asarray(ev.paired), np.asarray(ev.mac), np.nan), cost)
-        if progress:
-            progress(it)
-        return it
-
-    history = [record(0, theta)]
-    converged = False
-    for _ in range(opts.max_iterations * 4):  # rejected LM steps do not count as iterations
-        new_theta, state, _ = step(theta, state, problem)
-        if bool(jnp.all(new_theta == theta)):
-            if bool(state.terminate) if hasattr(state, "terminate") else False:
-                break
-            continue
-        change = float(jnp.max(jnp.abs(jnp.expm1(new_theta) - jnp.expm1(theta))))
-        theta = new_theta
-        history.append(record(len(history), theta))
-        if change <= opts.tolerance:
-            converged = True
-            break
-        if len(history) > opts.max_iterations:
-            break
-    final_model = problem.model(theta)
+    state = Compiled(run)(theta0, problem, Dense(), jnp.zeros(0), settings, False, report if progress else None)
+    h = state.history
+    n = int(state.accepted)
+    history = [Iteration(k, np.asarray(h.alpha[k]), np.asarray(h.freq_dev[k]), np.asarray(h.mac[k]),
+                         float(h.cost[k])) for k in range(n + 1)]
+    theta = state.theta
     return UpdateResult(
-        model=final_model,
+        model=problem.model(theta),
         names=[p.name for p in problem.parameterisation.parameters],
         alpha=np.asarray(jnp.expm1(theta)),
         theta=np.asarray(theta),
-        converged=converged,
-        iterations=len(history) - 1,
+        converged=bool(state.converged),
+        iterations=n,
         history=history,
         active=np.asarray(problem.active),
-        before=_pairing(evaluations[0], test, problem),
-        after=_pairing(evaluations[-1], test, problem),
+        before=_pairing(state.start, test, problem),
+        after=_pairing(state.evaluation, test, problem),
         seconds=time.perf_counter() - start,
         sensor_modes={key: (np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model))
-                      for key, ev in (("before", evaluations[0]), ("after", evaluations[-1]))},
+                      for key, ev in (("before", state.start), ("after", state.evaluation))},
         parameterisation=problem.parameterisation,
     )
