@@ -66,7 +66,11 @@ def test_update_add_effect(tmp_path):
                                  "--add-effect", "added_mass:node=14"])
     assert result.exit_code == 0, result.output
     d = json.loads(out.read_text())
-    assert [p["name"] for p in d["parameters"]] == ["g2", "added_mass_1"]
+    assert [p["name"] for p in d["parameters"]] == ["g2", "added_mass"]  # named by updating.add_effect
+    # One schema for the iteration history of update and of add_effect's report.
+    keys = {"iteration", "alpha", "freq_dev_pct", "mac", "cost", "rms_freq_dev_pct_active", "rms_freq_dev_pct_passive"}
+    assert d["history"][-1].keys() == d["add_effect"]["history"][-1].keys() == keys
+    assert d["history"][-1]["rms_freq_dev_pct_passive"] is None  # all modes active
     assert "added added_mass at node 14: starting values m = " in result.output
     assert d["after"]["rms_freq_dev_pct"] < 0.5 and d["converged"]
     bad = runner.invoke(app, ["update", str(bdf), str(uff), "--params", str(params), "--json", str(out),

@@ -1,0 +1,85 @@
+"""``jaxfem correlate``: pairing by MAC and Δf, AutoMAC, COMAC."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from ._common import (
+    JsonOut,
+    ModelArg,
+    PlotsOut,
+    TestArg,
+    check_plots,
+    fail,
+    load_inputs,
+    mode_labels,
+    print_pairing,
+    write_json,
+)
+
+
+def correlate(
+    model_path: ModelArg,
+    test_path: TestArg,
+    json_out: JsonOut,
+    plots: PlotsOut = None,
+    n: Annotated[int | None, typer.Option("-n", "--n-modes",
+                                          help="model modes to compute (at least 2 × test modes + 6)")] = None,
+    min_mac: Annotated[float, typer.Option("--min-mac", help="pairing threshold on MAC")] = 0.65,
+    max_freq_dev: Annotated[float, typer.Option("--max-freq-dev", help="pairing threshold on |Δf| (fraction)")] = 0.30,
+) -> None:
+    """Correlate model and test modes: pairing by MAC and Δf, AutoMAC, COMAC."""
+    import jaxfem
+
+    from .. import _correlation as corr
+    from .._solve import n_model_modes
+
+    check_plots(plots)
+    model, test, C, _ = load_inputs(model_path, test_path)
+    ne = test.n_modes
+    n_model = n_model_modes(model, ne, max(n or 0, n_model_modes(model, ne)))  # -n: at least the default
+    lam, phi = jaxfem.modes(model, n_model)
+    f_a, phi_a = np.asarray(jaxfem.frequencies_hz(lam)), C @ np.asarray(phi)
+    f_e, phi_e = np.asarray(test.frequencies_hz), np.asarray(test.shapes)
+    try:
+        pairing = corr.pair_modes(f_a, phi_a, f_e, phi_e, min_mac=min_mac, max_freq_dev=max_freq_dev)
+    except ValueError as err:
+        fail(str(err))
+    auto = np.asarray(corr.automac(phi_e))
+    labels = test.sensors.labels
+    if pairing.test.size:
+        co = np.asarray(corr.comac(phi_a[:, pairing.model], phi_e[:, pairing.test]))
+        comac_rows = [{"sensor": labels[i], "value": float(co[i])} for i in np.argsort(co, kind="stable")]
+    else:
+        comac_rows = []
+    result = {"model": str(model_path), "test": str(test_path), "n_model_modes": n_model,
+              **pairing.to_json(), "automac": auto.tolist(), "comac": comac_rows}
+
+    typer.echo(f"model {model_path}: {model.n_dof} DoFs, {n_model} modes; test {test_path}: "
+               f"{ne} modes at {len(labels)} sensors")
+    typer.echo(f"pairing: MAC ≥ {pairing.min_mac:.2f}, |Δf| ≤ {100 * pairing.max_freq_dev:.0f} %")
+    print_pairing(pairing)
+    if result["paired_modes"]:
+        typer.echo(f"paired {len(result['paired_modes'])}/{ne}: RMS Δf {result['rms_freq_dev_pct']:.2f} %, "
+                   f"mean MAC {result['mean_mac']:.3f}")
+    typer.echo("AutoMAC of the test shapes:")
+    typer.echo("      " + "".join(f"{j:>6}" for j in range(1, ne + 1)))
+    for i, row in enumerate(auto, 1):
+        typer.echo(f"{i:>6}" + "".join(f"{v:>6.2f}" for v in row))
+    typer.echo("COMAC per sensor (lowest first):")
+    for row in comac_rows:
+        typer.echo(f"  {row['sensor']:>12} {row['value']:.3f}")
+    write_json(json_out, result)
+    if plots is not None:
+        from .._plots import plot_freq_dev, plot_mac
+
+        written = [
+            plot_mac(np.asarray(corr.mac(phi_a, phi_e)).T, mode_labels(f_e), mode_labels(f_a), plots / "mac.png",
+                     f"MAC: {test_path.name} vs {model_path.name}"),
+            plot_freq_dev(pairing.per_test()[0], None, mode_labels(f_e), plots / "freq_dev.png"),
+        ]
+        typer.echo("wrote " + ", ".join(str(w) for w in written))

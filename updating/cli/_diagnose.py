@@ -1,0 +1,144 @@
+"""``jaxfem diagnose``: where the model fails and which physical effect is missing."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from ._common import ModelArg, TestArg, check_plots, fail, frf_prediction, load_inputs, mode_labels, write_json
+
+
+def _fmt(x, spec: str) -> str:
+    return format(x, spec) if x is not None and np.isfinite(x) else format("–", spec.split(".")[0])
+
+
+def _print_diagnosis(rep: dict) -> None:
+    b = rep["baseline"]
+    typer.echo(f"baseline: RMS Δf {b['rms_freq_dev_pct']:.2f} %, mean MAC {b['mean_mac']:.3f}, "
+               f"held-out RMS Δf {b['heldout_rms_freq_dev_pct']:.2f} %, χ²/row {b['chi2_per_row']:.2f}")
+    typer.echo("where it fails (combined indicator, property groups): " + ", ".join(
+        f"pid {g['pid']} {g['score']:.2f}" for g in rep["localisation"]["groups"][:5]))
+    typer.echo("                                              (grids): " + ", ".join(
+        f"{n['node']} {n['score']:.2f}" for n in rep["localisation"]["nodes"][:5]))
+    typer.echo(f"{'rank':>4} {'effect':<34} {'score':>6} {'ΔAIC':>8} {'held-out Δf [%]':>16}  warranted")
+    for e in rep["effects"][:10]:
+        where = f"{e['kind']} {e['where']}"[:34]
+        notes = "  (" + "; ".join(e["plausibility"]) + ")" if e["plausibility"] else ""
+        typer.echo(f"{e['rank']:>4} {where:<34} {_fmt(e['score'], '>6.1f')} {e['delta_aic']:>8.1f} "
+                   f"{_fmt(e['heldout_rms_freq_dev_pct_before'], '>7.2f')} → "
+                   f"{_fmt(e['heldout_rms_freq_dev_pct_after'], '<6.2f')}  {'yes' if e['warranted'] else 'no'}{notes}")
+    typer.echo(rep["verdict"])
+
+
+def _print_confirmation(after: dict) -> None:
+    typer.echo(f"{'test':>5} {'role':>7} {'f_test [Hz]':>12} {'Δf before [%]':>14} {'Δf after [%]':>13} "
+               f"{'MAC before':>11} {'MAC after':>10}")
+    for row in after["paired_modes"]:
+        cells = [f"{row[k]:>+14.2f}" if row[k] is not None else f"{'–':>14}" for k in ("freq_dev_pct_before", "freq_dev_pct_after")]
+        macs = [f"{row[k]:>10.3f}" if row[k] is not None else f"{'–':>10}" for k in ("mac_before", "mac_after")]
+        typer.echo(f"{row['test']:>5} {row['role']:>7} {row['f_test_hz']:>12.3f} {cells[0]} {cells[1][1:]} "
+                   f"{macs[0]:>11} {macs[1]}")
+    typer.echo(f"passive (held-out) modes: RMS Δf {after['rms_freq_dev_pct_passive_before']:.2f} % → "
+               f"{after['rms_freq_dev_pct_passive_after']:.2f} %; active: {after['rms_freq_dev_pct_active_before']:.2f} % → "
+               f"{after['rms_freq_dev_pct_active_after']:.2f} %")
+
+
+def _figures(rep: dict, diag, confirmation, model, test, report: Path) -> dict:
+    """The report's plots: comparison, localisation, ranking and, with an effect added, after."""
+    from .. import _correlation as corr
+    from .._plots import plot_convergence, plot_effect_ranking, plot_freq_dev, plot_mac, plot_structure
+
+    f_e, phi_e = np.asarray(test.frequencies_hz), np.asarray(test.shapes)
+    f_a, phi_a = diag.sensor_modes
+    dev = np.full(len(f_e), np.nan)
+    for row in rep["paired_modes"]:
+        dev[row["test"] - 1] = row["freq_dev_pct"]
+    figures = {
+        "mac": plot_mac(np.asarray(corr.mac(phi_a, phi_e)).T, mode_labels(f_e), mode_labels(f_a), report / "mac.png",
+                        "MAC: test vs baseline model"),
+        "freq_dev": plot_freq_dev(dev, None, mode_labels(f_e), report / "freq_dev.png"),
+        "localisation_groups": plot_structure(model, diag.element_scores, None, label="element indicator",
+                                              title="where it fails: elements (sensitivity + residual force)"),
+        "localisation_nodes": plot_structure(model, None, diag.node_scores, label="grid indicator",
+                                             title="where it fails: grids"),
+        "effects": plot_effect_ranking(rep["effects"]),
+    }
+    if confirmation is not None:
+        res = confirmation.after
+        active = ~confirmation.passive
+        rows = rep["after"]["paired_modes"]
+        figures["freq_dev_after"] = plot_freq_dev(
+            np.array([r["freq_dev_pct_before"] if r["freq_dev_pct_before"] is not None else np.nan for r in rows]),
+            np.array([r["freq_dev_pct_after"] if r["freq_dev_pct_after"] is not None else np.nan for r in rows]),
+            mode_labels(f_e), report / "freq_dev_after.png", active=active)
+        f_u, phi_u = res.sensor_modes["after"]
+        figures["mac_after"] = plot_mac(np.asarray(corr.mac(phi_u, phi_e)).T, mode_labels(f_e), mode_labels(f_u),
+                                        report / "mac_after.png", "MAC after adding the effect")
+        figures["convergence"] = plot_convergence(res.history, res.names, report / "convergence.png", active=active)
+    if "frf" in rep and (report / "frf.png").exists():
+        figures["frf"] = report / "frf.png"
+    return figures
+
+
+def diagnosis(model, test, params, *, model_name: str, test_name: str, json_out: Path | None,
+              report: Path | None, frf_path: Path | None = None, options=None) -> dict:
+    """Diagnose, add the winning effect, update, print, write JSON and the HTML report."""
+    from .._diagnose import DiagnoseOptions, add_effect, diagnose
+    from .._report import json_safe, write_report
+
+    def say(line: str) -> None:
+        typer.echo(f"[diagnose] {line}", err=True)
+
+    diag = diagnose(model, test, params, options=options or DiagnoseOptions(), progress=say)
+    rep = dict(diag.to_json(), model=model_name, test=test_name)
+    _print_diagnosis(rep)
+    confirmation = None
+    if diag.best is not None:
+        typer.echo(f"adding {diag.best.kind} at {diag.best.where()} and updating again "
+                   "(passive modes held out of the fit):")
+
+        def progress(it) -> None:
+            typer.echo(f"[update] iteration {it.iteration:3d}  cost {it.cost:.4e}", err=True)
+
+        confirmation = add_effect(model, test, diag.best, params, progress=progress)
+        rep["after"] = confirmation.to_json()
+        _print_confirmation(rep["after"])
+    if frf_path is not None and confirmation is not None:
+        rep["frf"] = frf_prediction(frf_path, test, model, confirmation.after.model, report)
+    if json_out is not None:
+        write_json(json_out, rep)
+    if report is not None:
+        report.mkdir(parents=True, exist_ok=True)
+        figures = _figures(rep, diag, confirmation, model, test, report)
+        typer.echo(f"wrote {write_report(json_safe(rep), figures, report / 'report.html')}")
+    return rep
+
+
+def diagnose(
+    model_path: ModelArg,
+    test_path: TestArg,
+    json_out: Annotated[Path, typer.Option("--json", help="write diagnosis.json")],
+    report: Annotated[Path | None, typer.Option("--report", help="directory for report.html and its PNG plots")] = None,
+    params_path: Annotated[Path | None, typer.Option("--params", metavar="PARAMS.toml", exists=True, dir_okay=False,
+                                                     help="the engineer's updating parameters (the baseline)")] = None,
+    frf_path: Annotated[Path | None, typer.Option("--frf", exists=True, dir_okay=False,
+                                                  help="measured FRFs (UFF 58) predicted before/after")] = None,
+    noise_freq: Annotated[float, typer.Option("--noise-freq", help="expected frequency error, % (1σ)")] = 0.2,
+    noise_shape: Annotated[float, typer.Option("--noise-shape", help="expected shape error per component, % (1σ)")] = 1.0,
+) -> None:
+    """Where does the model fail, and which physical effect is missing? Localise the error,
+    rank candidate effects by cross-validated prediction of held-out modes and AIC, add the
+    best one and update again."""
+    from .._diagnose import DiagnoseOptions
+
+    check_plots(report)
+    model, test, _, params = load_inputs(model_path, test_path, params_path)
+    if not (noise_freq > 0 and noise_shape > 0):
+        fail("--noise-freq and --noise-shape must be positive (percent)")
+    options = DiagnoseOptions(noise_freq=noise_freq / 100, noise_shape=noise_shape / 100)
+    diagnosis(model, test, params, model_name=model_path.name, test_name=test_path.name, json_out=json_out,
+              report=report, frf_path=frf_path, options=options)
+

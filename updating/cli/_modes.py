@@ -1,0 +1,53 @@
+"""``jaxfem modes``: natural frequencies of a bulk-data model."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ._common import write_json
+
+
+def _modes_table(path: Path, n_modes: int) -> dict:
+    import jaxfem
+    from jaxfem.io import read_bdf
+
+    bulk = read_bdf(path)
+    model = jaxfem.build_model(bulk)
+    n_modes = min(n_modes, model.n_dof - len(model.dofs.massless))
+    K, M = jaxfem.assemble(model)
+    lam, _ = jaxfem.eigh(K, M, n_modes)
+    freqs = [float(f) for f in jaxfem.frequencies_hz(lam)]
+    return {
+        "model": str(path),
+        "n_dof": int(model.n_dof),
+        "n_massless": len(model.dofs.massless),
+        "auto_spc": [[int(a), int(b)] for a, b in model.dofs.auto_spc],
+        "unknown_cards": sorted(bulk.unknown),
+        "eigenvalues": [float(x) for x in lam],
+        "frequencies_hz": freqs,
+    }
+
+
+def _print_table(result: dict) -> None:
+    typer.echo(f"model {result['model']}: {result['n_dof']} DoFs after constraints "
+               f"({result['n_massless']} massless, condensed; {len(result['auto_spc'])} auto-SPC)")
+    if result["unknown_cards"]:
+        typer.echo(f"warning: unsupported cards ignored: {', '.join(result['unknown_cards'])}", err=True)
+    typer.echo(f"{'mode':>5}  {'f [Hz]':>12}  {'λ = ω² [rad²/s²]':>18}")
+    for i, (f, lam) in enumerate(zip(result["frequencies_hz"], result["eigenvalues"]), 1):
+        typer.echo(f"{i:>5}  {f:>12.4f}  {lam:>18.6e}")
+
+
+def modes(
+    model: Annotated[Path, typer.Argument(exists=True, dir_okay=False, help="Nastran bulk data (SI units)")],
+    n: Annotated[int, typer.Option("-n", "--n-modes", help="number of modes")] = 10,
+    json_out: Annotated[Path | None, typer.Option("--json", help="write results as JSON")] = None,
+) -> None:
+    """Natural frequencies of a bulk-data model."""
+    result = _modes_table(model, n)
+    _print_table(result)
+    if json_out:
+        write_json(json_out, result)
