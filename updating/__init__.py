@@ -28,10 +28,10 @@ from ._effects import at_reference as at_reference
 from ._effects import effect_parameters as effect_parameters
 from ._effects import parse_effect as parse_effect
 from ._localisation import reduction as reduction
-from ._montecarlo import MonteCarloResult as MonteCarloResult
-from ._montecarlo import Study as Study
-from ._montecarlo import default_study as default_study
 from ._montecarlo import montecarlo as montecarlo
+from ._study import MonteCarloResult as MonteCarloResult
+from ._study import Study as Study
+from ._study import default_study as default_study
 from ._ray import montecarlo_ray as montecarlo_ray
 from ._localisation import residual_forces as residual_forces
 from ._parameters import Options as Options

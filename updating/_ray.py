@@ -21,7 +21,8 @@ from pathlib import Path
 
 import jax
 
-from ._montecarlo import MonteCarloResult, Progress, Runner, Study, _collect, _Store
+from ._montecarlo import Progress, Runner, _collect, _Store
+from ._study import MonteCarloResult, Study
 
 
 def _pin(num_cpus: int):

@@ -21,8 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, PRNGKeyArray
 
-import jaxfem
-from identification import ModalData, Sensors, observation_matrix
+from identification import ModalData, Sensors
 from jaxfem import Model
 
 from ._compiled import Compiled

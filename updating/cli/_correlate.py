@@ -28,7 +28,7 @@ def correlate(
     json_out: JsonOut,
     plots: PlotsOut = None,
     n: Annotated[int | None, typer.Option("-n", "--n-modes",
-                                          help="model modes to compute (at least 2 × test modes + 6)")] = None,
+                                          help="model modes to compute (default 2 × test modes + 6, as n_model_modes)")] = None,
     min_mac: Annotated[float, typer.Option("--min-mac", help="pairing threshold on MAC")] = 0.65,
     max_freq_dev: Annotated[float, typer.Option("--max-freq-dev", help="pairing threshold on |Δf| (fraction)")] = 0.30,
 ) -> None:
@@ -41,7 +41,7 @@ def correlate(
     check_plots(plots)
     model, test, C, _ = load_inputs(model_path, test_path)
     ne = test.n_modes
-    n_model = n_model_modes(model, ne, max(n or 0, n_model_modes(model, ne)))  # -n: at least the default
+    n_model = n_model_modes(model, ne, n)
     lam, phi = jaxfem.modes(model, n_model)
     f_a, phi_a = np.asarray(jaxfem.frequencies_hz(lam)), C @ np.asarray(phi)
     f_e, phi_e = np.asarray(test.frequencies_hz), np.asarray(test.shapes)
