@@ -1,7 +1,7 @@
 """One updating iteration (eigen + Jacobian + LM step), jaxfem against scipy + FD, one run.
 
-jaxfem: one Optimistix Levenberg–Marquardt step of ``updating.update`` (residuals with
-in-loop pairing, forward-mode Jacobian through the implicit eigen rule), compiled, timed
+jaxfem: one Levenberg–Marquardt step of the updating engine (residuals with in-loop
+pairing, forward-mode Jacobian through the implicit eigen rule), compiled, timed
 after a warm-up. Reference: the same iteration built from scipy — dense K(α) = K0 + Σ α_i K_i,
 ``scipy.linalg.eigh(K, M, subset_by_index)`` for the model modes, MAC pairing (Hungarian),
 residuals, a central finite-difference Jacobian (2p more solves) and the LM step by
@@ -26,10 +26,8 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
-import equinox as eqx  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
-import optimistix as optx  # noqa: E402
 import scipy.linalg as sl  # noqa: E402
 from scipy.optimize import linear_sum_assignment  # noqa: E402
 
@@ -37,9 +35,13 @@ import jaxfem  # noqa: E402
 from benchmarks.frames import SIZES, frame_bdf  # noqa: E402
 from benchmarks.models import MODELS  # noqa: E402
 from benchmarks.perf_eigen import best_time  # noqa: E402
-from identification import ModalData, Sensors, observation_matrix  # noqa: E402
+from identification import Sensors, observation_matrix  # noqa: E402
 from jaxfem.io import read_bdf, read_bdf_text  # noqa: E402
-from updating import Options, Parameter, ParameterSet, build_problem, parameterise, residuals  # noqa: E402
+from updating import Options, Parameter, ParameterSet, build_problem, parameterise, simulate_test  # noqa: E402
+from updating import _engine  # noqa: E402
+from updating._compiled import Compiled  # noqa: E402
+from updating._eigensolvers import Dense  # noqa: E402
+from updating._engine import Settings  # noqa: E402
 
 
 def garteur_case():
@@ -62,21 +64,19 @@ def simulated(model, sensors, params, n_modes):
     base, par = parameterise(model, params)
     alpha = 0.1 * np.sin(np.arange(1, len(params) + 1))
     truth = par.apply(base, jnp.log1p(jnp.asarray(alpha)))
-    lam, phi = jaxfem.eigh(*jaxfem.assemble(truth), n_modes + 6)
-    f = np.asarray(jaxfem.frequencies_hz(lam))
-    keep = np.flatnonzero(f > 3.0)[:n_modes]  # elastic modes only (GARTEUR: 6 free/suspension)
+    f = np.asarray(jaxfem.frequencies_hz(jaxfem.modes(truth, n_modes + 6)[0]))
+    skip = int(np.sum(f <= 3.0))  # elastic modes only (GARTEUR: 6 free/suspension)
     C, _ = observation_matrix(model, sensors)
-    return ModalData(f[keep], np.asarray(C @ phi)[:, keep], sensors), C
+    return simulate_test(truth, sensors, n_modes, skip=skip), C
 
 
 def jaxfem_step(problem, n_p):
-    solver = optx.LevenbergMarquardt(rtol=1e-12, atol=1e-12)
+    """One step of the updating engine (``updating._engine.run`` limited to one step: the
+    residual and Jacobian at α = 0 and the Levenberg–Marquardt step), compiled."""
+    settings = Settings(False, 1e-3, 1, 1)
+    run = Compiled(_engine.run)
     theta = jnp.zeros(n_p)
-    out, aux = jax.eval_shape(residuals, theta, problem)
-    options = {"jac": "fwd"}
-    state = eqx.filter_jit(solver.init)(residuals, theta, problem, options, out, aux, frozenset())
-    step = eqx.filter_jit(lambda t, s, p: solver.step(residuals, t, p, options, s, frozenset()))
-    return lambda: step(theta, state, problem)
+    return lambda: run(theta, problem, Dense(), jnp.zeros(0), settings).solver
 
 
 def scipy_iteration(K0, Ki, M, C, test, weights, n_model, damping=1e-3):

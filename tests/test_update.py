@@ -3,6 +3,7 @@
 import gc
 import os
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -13,7 +14,7 @@ from identification import FRFData, ModalData, Sensors, observation_matrix
 from jaxfem.io import read_bdf_text
 from updating._parameters import Options, Parameter, ParameterSet, parameterise
 from updating._prediction import frf_correlation, predict_frf
-from updating import Noise, parameter_std
+from updating import Noise, parameter_std, simulate_test
 from updating._solve import build_problem, update
 
 TRUE_ALPHA = np.array([0.15, -0.10, 0.08, -0.05])
@@ -26,11 +27,10 @@ def setup():
               Parameter("box_E", "E", pids=(6,)), Parameter("floor_mass", "m", nodes=(14, 23)))
     base, par = parameterise(model, params)
     truth = par.apply(base, jnp.log1p(jnp.asarray(TRUE_ALPHA)))
-    lam, phi = jaxfem.eigh(*jaxfem.assemble(truth), 12)
     free = model.node_ids[(model.node_ids > 9) & (model.node_ids < 900000)]
     sensors = Sensors.from_components(np.repeat(free[::2], 2), np.tile([1, 2], len(free[::2])))
-    C, _ = observation_matrix(model, sensors)
-    return model, params, truth, np.asarray(jaxfem.frequencies_hz(lam)), np.asarray(C @ phi), sensors
+    measured = simulate_test(truth, sensors, 12)
+    return model, params, truth, measured.frequencies_hz, measured.shapes, sensors
 
 
 def _update(model, params, test, **options):
@@ -91,17 +91,14 @@ def test_noise_within_derived_tolerance(setup):
     error σ_φ on component i gives σ_φ|φ_e,i|/‖φ_e‖ on the eigenvector rows),
     Cov θ = J⁺ Σ J⁺ᵀ and σ_α = e^θ σ_θ; each factor must lie within 5σ of the truth.
     """
-    model, params, _, f, shapes, sensors = setup
-    rng = np.random.default_rng(1)
-    sigma_f, sigma_phi = 0.002, 0.01
-    f_noisy = f[:10] * (1 + sigma_f * rng.standard_normal(10))
-    s_noisy = shapes[:, :10] * (1 + sigma_phi * rng.standard_normal(shapes[:, :10].shape))
-    test = ModalData(f_noisy, s_noisy, sensors)
+    model, params, truth, f, shapes, sensors = setup
+    noise = Noise(relative=0.01, frequency=0.004)  # σ 0.4 % on λ: 0.2 % on the frequencies
+    test = simulate_test(truth, sensors, 10, noise, jax.random.key(1))
     pset = ParameterSet(params, Options(tolerance=1e-8))
     res = update(model, test, pset)
     problem = build_problem(model, ModalData(f[:10], shapes[:, :10], sensors), pset)
     theta = jnp.log1p(jnp.asarray(TRUE_ALPHA))
-    sigma = parameter_std(problem, theta, Noise(relative=sigma_phi, frequency=2 * sigma_f))  # σ_λ/λ = 2σ_f
+    sigma = parameter_std(problem, theta, noise)
     err = np.abs(res.alpha - TRUE_ALPHA)
     assert np.all(err <= 5 * sigma), (err, sigma)
     assert np.all(sigma < 0.05)  # the tolerance is meaningful, not vacuous

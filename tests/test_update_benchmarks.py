@@ -2,6 +2,7 @@
 
 import csv
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -9,9 +10,10 @@ import pytest
 import jaxfem
 from benchmarks.models import MODELS
 from benchmarks.models.test_data import TREE_TABLE_4_6
-from identification import ModalData, Sensors, observation_matrix
+from identification import ModalData, Sensors
 from jaxfem.io import read_bdf
-from updating import Noise, Options, Parameter, ParameterSet, build_problem, parameter_std, parameterise, update
+from updating import (Noise, Options, Parameter, ParameterSet, build_problem, parameter_std, parameterise, perturb,
+                      simulate_test, update)
 
 
 def _sensors(name):
@@ -21,9 +23,8 @@ def _sensors(name):
 
 
 def _simulate(truth, sensors, n_modes, skip=0):
-    lam, phi = jaxfem.eigh(*jaxfem.assemble(truth), n_modes + skip)
-    C, _ = observation_matrix(truth, sensors)
-    return np.asarray(jaxfem.frequencies_hz(lam))[skip:], np.asarray(C @ phi)[:, skip:]
+    measured = simulate_test(truth, sensors, n_modes, skip=skip)
+    return measured.frequencies_hz, measured.shapes
 
 
 def test_tree_table_4_6_model_1_noise_free():
@@ -86,16 +87,15 @@ def test_garteur_noise_within_derived_tolerance(garteur):
     the truth, σ from first-order propagation of the noise through the weighted residual
     Jacobian at the solution (Cov θ = J⁺ Σ J⁺ᵀ; see tests/test_update.py)."""
     model, sensors, f, shapes = garteur
-    rng = np.random.default_rng(7)
-    sigma_f, sigma_phi = 0.002, 0.01
-    noisy = ModalData(f * (1 + sigma_f * rng.standard_normal(f.shape)),
-                      shapes * (1 + sigma_phi * rng.standard_normal(shapes.shape)), sensors)
+    noise = Noise(relative=0.01, frequency=0.004)  # σ 0.4 % on λ: 0.2 % on the frequencies
+    lam, phi = perturb(jax.random.key(7), noise, (2 * np.pi * f) ** 2, shapes)
+    noisy = ModalData(np.asarray(jaxfem.frequencies_hz(lam)), np.asarray(phi), sensors)
     pset = ParameterSet(GARTEUR_PARAMS, Options(tolerance=1e-8))
     res = update(model, noisy, pset)
     assert res.converged
     problem = build_problem(model, ModalData(f, shapes, sensors), pset)
     theta = jnp.log1p(jnp.asarray(GARTEUR_TRUTH))
-    sigma = parameter_std(problem, theta, Noise(relative=sigma_phi, frequency=2 * sigma_f))  # σ_λ/λ = 2σ_f
+    sigma = parameter_std(problem, theta, noise)
     err = np.abs(res.alpha - GARTEUR_TRUTH)
     assert np.all(err <= 5 * sigma), (err, sigma)
     assert np.all(sigma < 0.1)

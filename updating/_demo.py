@@ -4,9 +4,9 @@
 The truth differs from the nominal model by a hidden effect — the fin-to-fuselage
 connection (RBE2 from grid 1029 to 6001) is a flexible joint — and by a parameter error
 the engineer's parameters can fix (fuselage bending stiffness +6 %). Measurement: the
-first 14 elastic modes at the 24 sensors of ``garteur_sensors.csv``, Gaussian noise of
-0.2 % on frequencies and 1 % on each shape component (thesis Table 4.7 magnitudes),
-written as a universal file.
+first 14 elastic modes at the 24 sensors of ``garteur_sensors.csv`` with the Table 4.7
+errors of :func:`updating.simulate_test`: σ = 0.4 % on each eigenvalue (0.2 % on the
+frequencies) and 1 % relative on each shape component; written as a universal file.
 """
 
 from __future__ import annotations
@@ -14,15 +14,16 @@ from __future__ import annotations
 from importlib import resources
 from pathlib import Path
 
+import jax
 import jax.numpy as jnp
-import numpy as np
 
 import jaxfem
-from identification import ModalData, Sensors, observation_matrix, write_uff
+from identification import Sensors, write_uff
 from jaxfem.io import read_bdf
 
 from ._effects import Effect, joint_reference
 from ._parameters import Options, Parameter, ParameterSet
+from ._simulation import Noise, simulate_test
 
 HIDDEN = "a flexible joint at the fin root (RBE2 1029 → 6001, k_rot = 1/300 of its reference)"
 PARAMETERS = ParameterSet((Parameter("fuselage", "stiffness", pids=(1,)),
@@ -41,14 +42,8 @@ def demo_case(directory: Path, seed: int = 2026) -> tuple[Path, Path]:
     truth = jaxfem.correct(model, [model.element_ids(pids=[1])], jnp.array([0.06]))
     ref = joint_reference(model, (6001,), [501])
     truth = Effect("joint", nodes=(6001,), values={"k_trans": ref["k_trans"], "k_rot": ref["k_rot"] / 300}).apply(truth)
-    lam, phi = jaxfem.modes(truth, 20)
-    C, _ = observation_matrix(truth, sensors)
-    rng = np.random.default_rng(seed)
-    f = np.asarray(jaxfem.frequencies_hz(lam))[6:]
-    shapes = np.asarray(C @ phi)[:, 6:]
-    f = f * (1 + 0.002 * rng.standard_normal(f.shape))
-    shapes = shapes * (1 + 0.01 * rng.standard_normal(shapes.shape))
+    measured = simulate_test(truth, sensors, 14, Noise(relative=0.01, frequency=0.004), jax.random.key(seed), skip=6)
     nodes = {int(n): model.xyz[i] for i, n in enumerate(model.node_ids)}
     test_path = directory / "test.uff"
-    write_uff(test_path, nodes=nodes, modes=ModalData(f, shapes, sensors))
+    write_uff(test_path, nodes=nodes, modes=measured)
     return model_path, test_path
