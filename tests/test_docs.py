@@ -10,6 +10,7 @@ resolves, anchors included.
 from __future__ import annotations
 
 import importlib
+import inspect
 import re
 import sys
 from pathlib import Path
@@ -71,32 +72,59 @@ def test_thesis_table_matches_code_citations():
     assert not not_cited, f"in docs/thesis.md but cited nowhere in {CODE}: {not_cited}"
 
 
-def _resolve(name: str) -> bool:
-    """``pkg.module.attr.attr`` importable and found (longest importable module prefix)."""
+_MISSING = object()
+
+
+def _resolve(name: str):
+    """The object ``pkg.module.attr.attr`` names (longest importable module prefix), or
+    _MISSING. A module that exists but fails to import raises."""
     parts = name.split(".")
     for i in range(len(parts), 0, -1):
+        module = ".".join(parts[:i])
         try:
-            obj = importlib.import_module(".".join(parts[:i]))
-        except ImportError:
+            obj = importlib.import_module(module)
+        except ModuleNotFoundError as err:
+            if err.name is None or not (module + ".").startswith(err.name + "."):
+                raise  # a module that exists but imports something missing
             continue
         for attr in parts[i:]:
-            if not hasattr(obj, attr):
-                return False
-            obj = getattr(obj, attr)
-        return True
-    return False
+            obj = getattr(obj, attr, _MISSING)
+            if obj is _MISSING:
+                return _MISSING
+        return obj
+    return _MISSING
+
+
+def _defined_in(obj) -> str | None:
+    """Repository-relative file that defines ``obj``, where Python can tell."""
+    if isinstance(obj, property):
+        obj = obj.fget
+    try:
+        path = inspect.getsourcefile(inspect.unwrap(obj))
+    except TypeError:
+        return None
+    if path is None:
+        return None
+    path = Path(path).resolve()
+    return path.relative_to(ROOT).as_posix() if path.is_relative_to(ROOT) else None
 
 
 def test_thesis_table_names_existing_code():
+    """Every file in a row exists, every dotted name resolves, and is defined in a file the
+    row names (so the table follows code that moves)."""
     missing = []
     for number, row in _thesis_rows().items():
-        for path in re.findall(r"[\w/]+\.py\b", row):
+        files = re.findall(r"[\w/]+\.py\b", row)
+        for path in files:
             if not (ROOT / path).is_file():
                 missing.append(f"eq. {number}: file {path}")
         for name in re.findall(r"`((?:jaxfem|identification|updating)(?:\.\w+)+)`", row):
-            if not _resolve(name):
+            obj = _resolve(name)
+            if obj is _MISSING:
                 missing.append(f"eq. {number}: {name}")
-    assert not missing, f"docs/thesis.md names code that does not exist: {missing}"
+            elif (where := _defined_in(obj)) is not None and where not in files:
+                missing.append(f"eq. {number}: {name} is defined in {where}, not in {files}")
+    assert not missing, f"docs/thesis.md names code that does not exist or has moved: {missing}"
 
 
 def test_one_citation_form_in_code():
