@@ -10,7 +10,7 @@ fixed-shape, jittable counterpart for Monte-Carlo batches.
 
 Pairing rule (thesis §4.3.3.3, §5.2.4): a test and a model mode may be paired when
 ``MAC ≥ min_mac`` (0.65 in ch. 4, 0.60 in ch. 5) and ``|Δf| ≤ max_freq_dev`` (0.30),
-with Δf of eq. (4.1); pairing uses the shapes, not the order of the frequencies, so it
+with Δf of eq. 4.1; pairing uses the shapes, not the order of the frequencies, so it
 follows modes that cross (§1.3.3.1).
 """
 
@@ -71,7 +71,7 @@ def _shapes(name_a: str, phi_a, name_e: str, phi_e, *, same_modes: bool = False)
 def mac(
     phi_a: Inexact[ArrayLike, "n_dof n_a"], phi_e: Inexact[ArrayLike, "n_dof n_e"]
 ) -> Float[Array, "n_a n_e"]:
-    """Modal Assurance Criterion, thesis eq. (1.54) (Allemang & Brown 1982).
+    """Modal Assurance Criterion, thesis eq. 1.54 (Allemang & Brown 1982).
 
     ``MAC_rs = |φ_a,rᴴ φ_e,s|² / ((φ_a,rᴴ φ_a,r)(φ_e,sᴴ φ_e,s))``; the Hermitian form makes
     it invariant to a complex scale of either vector. A zero vector gives MAC 0 (and a
@@ -116,7 +116,7 @@ def comac(
 def frequency_deviation(
     f_a: Float[ArrayLike, "*b"], f_e: Float[ArrayLike, "*b"]
 ) -> Float[Array, "*b"]:
-    """Relative frequency deviation ``Δf = (f_a − f_e) / f_e``, thesis eq. (4.1).
+    """Relative frequency deviation ``Δf = (f_a − f_e) / f_e``, thesis eq. 4.1.
 
     A fraction (reports print it in %); broadcasts, so ``frequency_deviation(f_a[:, None],
     f_e[None, :])`` gives the ``(n_a, n_e)`` matrix used for pairing.
@@ -147,7 +147,7 @@ def cross_orthogonality(
     phi_e: Inexact[ArrayLike, "n_dof n_e"],
     M_red: Float[ArrayLike, "n_dof n_dof"],
 ) -> Inexact[Array, "n_a n_e"]:
-    """Cross-orthogonality ``φ̂_aᴴ M_red φ̂_e`` (thesis eqs. 1.44, 1.54 with a mass metric).
+    """Cross-orthogonality ``φ̂_aᴴ M_red φ̂_e`` (thesis eq. 1.44, eq. 1.54 with a mass metric).
 
     Each mode is first scaled to unit generalised mass on ``M_red``, ``φ̂ = φ / √(φᴴ M_red
     φ)``, so that exact modes give the identity (up to the sign of each mode). ``M_red``

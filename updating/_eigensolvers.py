@@ -5,7 +5,7 @@ iterate's basis, or an empty array), and returns the :class:`Evaluation` of the 
 modes paired with the test modes (in-loop pairing, footnote 1 of thesis §3.2.2; the
 pairing carries no derivative), the next warm start and two flags: the solve converged,
 and it needed a fresh preconditioner. Derivatives of the paired modes are exact
-(implicit differentiation, thesis eq. 3.23, eq. 3.24, eq. 3.25, eq. 3.26, eq. 3.27).
+(implicit differentiation, thesis eq. 3.23, eq. 3.28, eq. 3.29).
 
 - :class:`Dense`: all modes by ``jaxfem.modes`` (LAPACK ``eigh``; massless DoFs condensed;
   frequency-dependent stiffness). The default of ``update`` and ``diagnose``.

@@ -2,7 +2,7 @@
 
 :func:`run` minimises ½‖ε(θ)‖² (eq. 3.4, the weights inside ε, residual rows of
 ``updating._residuals``) by Optimistix Gauss–Newton or Levenberg–Marquardt (the step of
-eq. 3.11, eq. 3.71), stepped in a ``lax.while_loop``: jittable and vmappable, one sample
+eq. 3.11), stepped in a ``lax.while_loop``: jittable and vmappable, one sample
 of a Monte-Carlo study or one fit of a diagnosis as much as an engineer's update.
 
 One stopping rule: converged when an accepted step changes no factor α = e^θ − 1 by more

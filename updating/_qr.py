@@ -1,6 +1,6 @@
 """The least-squares kernel of the updating step: Householder QR as a lineax solver.
 
-The Gauss–Newton / Levenberg–Marquardt step of thesis eq. 3.71 solves an overdetermined
+The Gauss–Newton / Levenberg–Marquardt step of thesis eq. 3.11 solves an overdetermined
 system J Δθ ≈ −ε (more residual rows than parameters). :class:`HouseholderQR` implements
 ``lineax.AbstractLinearSolver`` (public API only) with two properties the engine needs:
 

@@ -107,16 +107,16 @@ def residuals(theta: Float[Array, " p"], problem: Problem):
 
 
 def rows(theta: Float[Array, " p"], problem: Problem, ev: Evaluation) -> dict:
-    """The residual rows of the paired active test modes, eqs. (3.12), (3.21), (3.4)."""
+    """The residual rows of the paired active test modes, eq. 3.12, eq. 3.21, eq. 3.4."""
     fitted = ev.paired & problem.active
     out = {}
     if problem.use_lam:
-        eps = (problem.lam_e - ev.lam_a) / problem.lam_e  # eq. (3.12), normalised
+        eps = (problem.lam_e - ev.lam_a) / problem.lam_e  # eq. 3.12, normalised
         out["eigenvalue"] = jnp.where(fitted, problem.lam_weight * eps, 0.0)
     if problem.use_phi:
         phi_e = problem.phi_e
         msf = jnp.sum(ev.phi_a * phi_e, axis=0) / jnp.sum(ev.phi_a * ev.phi_a, axis=0)
-        eps = (phi_e - msf * ev.phi_a) / jnp.linalg.norm(phi_e, axis=0)  # eq. (3.21)
+        eps = (phi_e - msf * ev.phi_a) / jnp.linalg.norm(phi_e, axis=0)  # eq. 3.21
         out["eigenvector"] = jnp.where(fitted[None, :], eps, 0.0)
     out["regularisation"] = jnp.sqrt(problem.mu) * theta
     return out

@@ -1,6 +1,6 @@
 """Parameter selection aids of thesis §4.2.4.1: sensitivities, identifiability, test runs.
 
-- :func:`sensitivities`: column norms of the eigen-gradient matrix, eq. (4.3), each scaled
+- :func:`sensitivities`: column norms of the eigen-gradient matrix, eq. 4.3, each scaled
   to a largest value of 1; a parameter below 0.1 in both is flagged (footnote 5).
 - :func:`identifiability`: singular values, condition number and nearly collinear columns
   of the weighted residual Jacobian (ill-conditioning, footnote 3 of §4.2.4).
@@ -52,7 +52,7 @@ def _scaled(x: np.ndarray) -> np.ndarray:
 
 @dataclasses.dataclass
 class Sensitivities:
-    """Parameter sensitivities of eq. (4.3) over the modes ``modes``.
+    """Parameter sensitivities of eq. 4.3 over the modes ``modes``.
 
     ``s_lam``, ``s_phi`` (p,): S_λ,k and S_φ,k scaled so that the largest is 1;
     ``flagged`` (p,): both below ``threshold``; ``raw_lam``, ``raw_phi`` (p,): the unscaled
@@ -97,7 +97,7 @@ def sensitivities(
     n_modes: int | None = None,
     threshold: float = 0.1,
 ) -> Sensitivities:
-    """Eigenvalue and eigenvector sensitivity of each parameter, thesis eq. (4.3).
+    """Eigenvalue and eigenvector sensitivity of each parameter, thesis eq. 4.3.
 
     S_λ,k = ‖∂λ_a/∂α_k‖ over the modes and S_φ,k = ‖∂φ_a/∂α_k‖ over the modes and the
     measured DoFs, at α = 0, each divided by its largest value over the parameters. A
@@ -121,7 +121,7 @@ def sensitivities(
         test = test_or_modes
     else:
         raise ValueError(f"test_or_modes must be ModalData or Sensors, got {type(test_or_modes).__name__}")
-    # Eq. (4.3) has no residual weights: skip computing the automatic ones.
+    # No residual weights in eq. 4.3: skip computing the automatic ones.
     unweighted = dataclasses.replace(pset, options=dataclasses.replace(pset.options, eigenvalue_weight=1.0))
     problem = build_problem(model, test, unweighted)
     names = [p.name for p in problem.parameterisation.parameters]
@@ -140,7 +140,7 @@ def sensitivities(
 
 @dataclasses.dataclass
 class Identifiability:
-    """Conditioning of the weighted residual Jacobian J = ∂ε/∂θ (rows of eqs. 3.12, 3.21).
+    """Conditioning of the weighted residual Jacobian J = ∂ε/∂θ (rows of eq. 3.12, eq. 3.21).
 
     ``singular_values`` (p,), descending (zeros when J has fewer rows than columns);
     ``condition_number`` σ_max/σ_min (inf if σ_min = 0); ``cosines`` (p, p): |cos| of the
@@ -188,7 +188,7 @@ def identifiability(
 ) -> Identifiability:
     """Identifiability of the parameters from the weighted residual Jacobian.
 
-    J stacks the eigenvalue and eigenvector rows of ε(θ) (eqs. 3.12, 3.21, weights
+    J stacks the eigenvalue and eigenvector rows of ε(θ) (eq. 3.12, eq. 3.21, weights
     included, regularisation rows excluded) at ``theta`` (default 0). A (near) rank
     deficiency, one parameter a linear combination of others (§4.2.4, footnote 3), shows
     as a large condition number; its direction is the smallest right singular vector.

@@ -175,7 +175,7 @@ class Study:
 def tree_parameters(options: Options | None = None) -> ParameterSet:
     """The tree's substructure stiffness factors: compound blades 2 & 4, homogeneous
     blades 1 & 3, upper pylon (Table 4.5 components); at most 16 iterations (§4.3.3.3).
-    Gauss–Newton, the thesis' iteration (eq. 3.71 without regularisation), converges in
+    Gauss–Newton, the thesis' iteration (eq. 3.11 without regularisation), converges in
     5–6 steps to an α change of 1e-8 (the floor set by the modes' accuracy, ~1e-9 at the
     sensors); Levenberg–Marquardt's damping made the first steps small (13 to reach 1e-6)."""
     options = options or Options(tolerance=1e-8, max_iterations=16, solver="gauss-newton")
@@ -237,8 +237,8 @@ class MonteCarloResult:
                 ok = d["status"][rows_] == 0
                 alpha = d["alpha"][rows_][ok]
                 dalpha = np.where(ratio, alpha / np.where(ratio, a0, 1.0) - 1.0, alpha - a0)
-                df = (d["f_a"][rows_][ok] - d["f_e"][rows_][ok]) / d["f_e"][rows_][ok] - dev0  # eq. (4.5)
-                dmac = d["mac"][rows_][ok] - ref["mac"][0]  # eq. (4.6)
+                df = (d["f_a"][rows_][ok] - d["f_e"][rows_][ok]) / d["f_e"][rows_][ok] - dev0  # eq. 4.5
+                dmac = d["mac"][rows_][ok] - ref["mac"][0]  # eq. 4.6
                 stats = lambda x: {"mean": _nan_stat(np.mean, x), "std": _nan_stat(np.std, x),
                                    "rms": _nan_stat(lambda v, axis: np.sqrt(np.mean(v**2, axis=axis)), x)}
                 out.append({"n_modes": n, "category": cat, "magnitude": mag, "samples": len(ok),

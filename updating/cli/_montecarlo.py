@@ -69,7 +69,7 @@ def _study_summary(result) -> None:
             typer.echo(f"{n:>3} {category:>9} {100 * max(mags):>9g} " + " ".join(cells)
                        + f" {failed:>7} {fallbacks:>9}")
     if difference:
-        typer.echo("* α(δ = 0) = 0: Δα = α(δ) − α(0), not the ratio of eq. (4.4)")
+        typer.echo("* α(δ = 0) = 0: Δα = α(δ) − α(0), not the ratio of eq. 4.4")
     failures = ", ".join(f"{k} {v}" for k, v in result.failures.items() if v) or "none"
     typer.echo(f"{sum(len(d['status']) for d in result.samples.values())} samples; failed (left out of the "
                f"statistics): {failures}; redone with full eigensolves: {result.fallbacks}")
@@ -97,7 +97,7 @@ def montecarlo(
     """Monte-Carlo study of experimental errors (thesis §4.3): "measured" modes of a
     reference model with random errors of each category and magnitude (Table 4.7),
     updated from a model with a known modelling error (Table 4.6); statistics of the
-    correction-factor, frequency and MAC deviations (eqs. 4.4–4.6, Figs. 4.24–4.32)."""
+    correction-factor, frequency and MAC deviations (eq. 4.4, eq. 4.5, eq. 4.6, Figs. 4.24–4.32)."""
     import jax
 
     from .._montecarlo import Runner, _Store
