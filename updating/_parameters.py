@@ -96,7 +96,7 @@ class Options:
 
 @dataclass(frozen=True)
 class ParameterSet:
-    """Parameters and options, as declared in a TOML file (schema in the README)."""
+    """Parameters and options, as declared in a TOML file (schema in docs/parameters.md)."""
 
     parameters: tuple[Parameter, ...]
     options: Options = field(default_factory=Options)

@@ -114,7 +114,7 @@ def update(
     model_path: ModelArg,
     test_path: TestArg,
     params_path: Annotated[Path, typer.Option("--params", metavar="PARAMS.toml", exists=True, dir_okay=False,
-                                              help="updating parameters and options (TOML, schema in README)")],
+                                              help="updating parameters and options (TOML, schema in docs/parameters.md)")],
     json_out: JsonOut,
     plots: PlotsOut = None,
     frf_path: Annotated[Path | None, typer.Option("--frf", exists=True, dir_okay=False,
