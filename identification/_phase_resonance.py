@@ -1,4 +1,4 @@
-"""Phase resonance testing: mode indicator, simulated sine excitation, force appropriation.
+"""Phase resonance testing: force appropriation over the modes of a model, exciter search.
 
 Thesis §2.1.2 and §3.4. A damped structure ``Mü + Du̇ + Ku = f̂ e^{iωt}`` (eq. 3.47)
 answers a sine excitation with ``û = H(ω) f̂``, ``H(ω) = (K − ω²M + iωD)⁻¹`` (eq. 3.48,
@@ -16,6 +16,11 @@ Force appropriation picks the force components at a few exciters that come close
 - ``"hunt"``: eigenproblem of eq. 3.58 on the exciter responses, weighted by the reduced mass
   matrix (Hunt, Vold, Peterson & Williams 1984).
 
+This module runs the simulated test of §5.4.1 (:func:`appropriate`,
+:func:`exciter_search`, :func:`appropriation_report`); the MIF, the damping matrix and
+the sine responses are in :mod:`identification._sine`, the force kernels of the four
+methods in :mod:`identification._forces`.
+
 Everything here is NumPy/SciPy in float64/complex128 (no JAX tracing): the methods are
 test-planning tools, not differentiated. DoF indices are 0-based; mode numbers 1-based
 as in the thesis tables; frequencies in Hz at the user boundary, rad/s inside.
@@ -32,337 +37,26 @@ from __future__ import annotations
 
 import itertools
 import math
-import operator
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 
 import equinox as eqx
 import numpy as np
 import scipy.linalg as sl
-from jaxtyping import Complex, Float, Int
+from jaxtyping import Float, Int
 from scipy.optimize import brentq
+
+from ._forces import _gram_eig, force_asher, force_hunt, force_lewis_wrisley, force_thesis
+from ._sine import _count, _indices, _real_array, _receptance, _system, damping_matrix, mode_indicator, sine_response
+
+# the appropriation study, and the names tests and docs/thesis.md import from here (before
+# the split into _sine and _forces they were defined here)
+__all__ = ["METHODS", "REDUCED_MASS", "Appropriation", "appropriate", "appropriation_report", "exciter_search",
+           "damping_matrix", "force_asher", "force_hunt", "force_lewis_wrisley", "force_thesis", "mode_indicator",
+           "sine_response", "_gram_eig", "_receptance"]
 
 METHODS = ("thesis", "lewis_wrisley", "asher", "hunt")
 REDUCED_MASS = ("diagonal", "guyan")
-_SINGULAR_TOL = 1e-12  # relative smallest eigenvalue below which a Gram matrix is singular
 _ASHER_GRID = 81  # frequency samples per mode in the search for det Re(H_ee) = 0
-
-
-# --------------------------------------------------------------------------- validation
-
-
-def _real_array(name: str, x, ndim: int | None = None) -> np.ndarray:
-    arr = np.asarray(x)
-    if np.iscomplexobj(arr):
-        raise ValueError(f"{name} must be real, got a complex array")
-    if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
-        raise ValueError(f"{name} must be numeric, got dtype {arr.dtype}")
-    arr = arr.astype(np.float64)
-    if ndim is not None and arr.ndim != ndim:
-        raise ValueError(f"{name} must have {ndim} dimension(s), got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} has non-finite entries")
-    return arr
-
-
-def _complex_array(name: str, x, ndim: int) -> np.ndarray:
-    arr = np.asarray(x)
-    if not (np.issubdtype(arr.dtype, np.number)):
-        raise ValueError(f"{name} must be numeric, got dtype {arr.dtype}")
-    arr = arr.astype(np.complex128)
-    if arr.ndim != ndim:
-        raise ValueError(f"{name} must have {ndim} dimension(s), got shape {arr.shape}")
-    if arr.size == 0:
-        raise ValueError(f"{name} is empty (shape {arr.shape})")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} has non-finite entries")
-    return arr
-
-
-def _square(name: str, a, n: int | None = None) -> np.ndarray:
-    a = _real_array(name, a, 2)
-    if a.shape[0] != a.shape[1] or a.shape[0] == 0:
-        raise ValueError(f"{name} must be a non-empty square matrix, got shape {a.shape}")
-    if n is not None and a.shape[0] != n:
-        raise ValueError(f"{name} has shape {a.shape} but K is {n}×{n}")
-    return a
-
-
-def _indices(name: str, idx, n: int, *, allow_empty: bool = False) -> np.ndarray:
-    arr = np.asarray(idx)
-    if arr.ndim != 1 or (arr.shape[0] == 0 and not allow_empty):
-        raise ValueError(f"{name} must be a non-empty 1-D sequence of DoF indices, got shape {arr.shape}")
-    if arr.size and not np.issubdtype(arr.dtype, np.integer):
-        raise ValueError(f"{name} must hold integer DoF indices (0-based), got dtype {arr.dtype}")
-    arr = arr.astype(np.int64)
-    bad = arr[(arr < 0) | (arr >= n)]
-    if bad.size:
-        raise ValueError(f"{name}: DoF index {bad[0]} is out of range 0..{n - 1}")
-    if len(np.unique(arr)) != len(arr):
-        raise ValueError(f"{name} lists a DoF twice: {arr.tolist()}")
-    return arr
-
-
-def _count(name: str, x) -> int:
-    """``x`` as a Python int (bool and floats refused)."""
-    try:
-        value = operator.index(x)
-    except TypeError:
-        value = None
-    if value is None or x is True or x is False:
-        raise ValueError(f"{name} must be an integer, got {x!r}")
-    return value
-
-
-def _system(K, M, damping):
-    K = _square("K", K)
-    n = K.shape[0]
-    M = _square("M", M, n)
-    D = damping_matrix(K, M, damping)
-    for name, a in (("K", K), ("M", M), ("D", D)):
-        if not np.allclose(a, a.T, rtol=1e-10, atol=0.0):
-            raise ValueError(f"{name} must be symmetric")
-    return K, M, D
-
-
-def damping_matrix(K, M, damping) -> Float[np.ndarray, "n n"]:
-    """Viscous damping matrix D (N·s/m) from a damping specification.
-
-    **Arguments:** ``K`` (N/m), ``M`` (kg) as n×n arrays; ``damping`` one of
-
-    - an n×n array: D itself;
-    - a number κ (s): stiffness-proportional ``D = κK`` (thesis §5.4.1 uses κ = 10⁻³ s);
-    - a mapping ``{"mu": μ, "kappa": κ}`` (either may be left out): Rayleigh
-      ``D = μM + κK``, thesis eq. 1.29.
-
-    **Returns:** D, float64 n×n.
-    """
-    K = _square("K", K)
-    M = _square("M", M, K.shape[0])
-    if isinstance(damping, Mapping):
-        unknown = set(damping) - {"mu", "kappa"}
-        if unknown:
-            raise ValueError(f"damping mapping takes keys 'mu' and 'kappa', got {sorted(unknown)}")
-        mu = _real_array("damping['mu']", damping.get("mu", 0.0), 0)
-        kappa = _real_array("damping['kappa']", damping.get("kappa", 0.0), 0)
-        return float(mu) * M + float(kappa) * K  # eq. 1.29
-    arr = np.asarray(damping)
-    if arr.ndim == 0:
-        return float(_real_array("damping", arr, 0)) * K
-    return _square("damping matrix D", arr, K.shape[0])
-
-
-# --------------------------------------------------------------------------- MIF, responses
-
-
-def mode_indicator(
-    u: Complex[np.ndarray, "*batch n"], weights: Float[np.ndarray, " n"] | None = None
-) -> Float[np.ndarray, "*batch"]:
-    """Mode Indicator Function ×1000, thesis eq. 3.54 with footnote 3.
-
-    ``MIF = 1000 · (1 − Σ_m w_m |Re û_m| |û_m| / Σ_m w_m |û_m|²)``: 1000 for a pure
-    normal-mode (quadrature) response, 0 for a response entirely in phase with the force.
-    The thesis' eq. 3.54 is unweighted (``weights=None``); passing the DoF masses gives
-    the mass-weighted form of the indicator's origin, Breitbach (1973) (thesis ref. [15]).
-
-    **Arguments:** ``u`` complex responses at the n measured DoFs (last axis; leading axes
-    are a batch); ``weights`` (n,) non-negative, e.g. the lumped masses.
-
-    **Returns:** MIF in [0, 1000], shape of ``u`` without its last axis.
-    """
-    u = np.asarray(u)
-    if u.ndim == 0 or u.shape[-1] == 0:
-        raise ValueError(f"u must have the measured DoFs on its last axis, got shape {u.shape}")
-    u = _complex_array("u", u, u.ndim)
-    w = np.ones(u.shape[-1]) if weights is None else _real_array("weights", weights, 1)
-    if w.shape != (u.shape[-1],):
-        raise ValueError(f"weights must have shape ({u.shape[-1]},), got {w.shape}")
-    if np.any(w < 0):
-        raise ValueError("weights must be non-negative")
-    mag = np.abs(u)
-    den = np.sum(w * mag**2, axis=-1)
-    if np.any(den <= 0):
-        raise ValueError("u has no (weighted) response: MIF undefined")
-    return 1000.0 * (1.0 - np.sum(w * np.abs(u.real) * mag, axis=-1) / den)  # eq. 3.54
-
-
-def _receptance(K, M, D, omega: float, cols: np.ndarray) -> np.ndarray:
-    """Columns ``cols`` of H(ω) = (K − ω²M + iωD)⁻¹ (eq. 5.3), complex n×len(cols)."""
-    n = K.shape[0]
-    Z = (K - omega**2 * M) + 1j * omega * D
-    rhs = np.zeros((n, len(cols)), dtype=np.complex128)
-    rhs[cols, np.arange(len(cols))] = 1.0
-    return np.linalg.solve(Z, rhs)
-
-
-def sine_response(
-    K: Float[np.ndarray, "n n"],
-    M: Float[np.ndarray, "n n"],
-    damping,
-    frequencies_hz: Float[np.ndarray, " f"],
-    force: Float[np.ndarray, " n"] | Float[np.ndarray, "n c"],
-) -> Complex[np.ndarray, "f n"] | Complex[np.ndarray, "f n c"]:
-    """Steady-state response to sine excitation over a sweep, thesis eq. 3.47, eq. 3.48, eq. 3.49,
-    eq. 5.4.
-
-    ``û(ω) = (K − ω²M + iωD)⁻¹ f̂`` with all force components in phase (eq. 3.48).
-
-    **Arguments:** ``K`` (N/m), ``M`` (kg); ``damping`` as :func:`damping_matrix`;
-    ``frequencies_hz`` (f,) ≥ 0; ``force`` (n,) one force vector, or (n, c) one per
-    column (e.g. the identity columns of single-point runs), in N.
-
-    **Returns:** complex128 responses (m), shape (f, n) or (f, n, c). Singular (LinAlgError)
-    only at an undamped resonance of an undamped model.
-    """
-    K, M, D = _system(K, M, damping)
-    n = K.shape[0]
-    f_hz = _real_array("frequencies_hz", frequencies_hz, 1)
-    if f_hz.size == 0 or np.any(f_hz < 0):
-        raise ValueError("frequencies_hz must be a non-empty 1-D array of non-negative values")
-    F = _real_array("force", force)
-    if F.ndim not in (1, 2) or F.shape[0] != n:
-        raise ValueError(f"force must have shape ({n},) or ({n}, c), got {F.shape}")
-    omega = 2.0 * np.pi * f_hz
-    Z = (K[None] - omega[:, None, None] ** 2 * M[None]) + 1j * omega[:, None, None] * D[None]
-    rhs = np.broadcast_to(F.reshape(n, -1).astype(np.complex128), (len(omega), n, F.reshape(n, -1).shape[1]))
-    X = np.linalg.solve(Z, rhs)
-    return X[..., 0] if F.ndim == 1 else X
-
-
-# --------------------------------------------------------------------------- force kernels
-
-
-def _normalise(f: np.ndarray) -> np.ndarray:
-    """Unit Euclidean norm, largest-magnitude component positive (a force direction)."""
-    f = f / np.linalg.norm(f)
-    return f if f[np.argmax(np.abs(f))] > 0 else -f
-
-
-def _gram_eig(R: np.ndarray, T: np.ndarray) -> tuple[float, np.ndarray] | None:
-    """Smallest eigenpair of ``(R − λT)φ = 0`` (eq. 3.58); None where T is singular."""
-    T = 0.5 * (T + T.T)
-    tmax = float(np.max(np.linalg.eigvalsh(T)))
-    if tmax <= 0 or float(np.min(np.linalg.eigvalsh(T))) <= _SINGULAR_TOL * tmax:
-        return None
-    lam, vec = sl.eigh(0.5 * (R + R.T), T)
-    return float(lam[0]), vec[:, 0]
-
-
-def force_thesis(
-    U: Complex[np.ndarray, "n c"], forces: Float[np.ndarray, "e c"] | None = None
-) -> Float[np.ndarray, " e"] | None:
-    """Optimised force vector of thesis §3.4.2, eq. 3.55, eq. 3.56, eq. 3.57,
-    eq. 3.58, eq. 3.59.
-
-    The C runs (columns of ``U``: complex responses at all n measured DoFs, at one
-    resonance frequency) are superposed with weights φ minimising
-    ``φᵀ Re(U)ᵀRe(U) φ / φᵀ (Re(U)ᵀRe(U) + Im(U)ᵀIm(U)) φ`` (eq. 3.57): the eigenvector
-    of the smallest eigenvalue of eq. 3.58. The force is ``[f̂¹ … f̂ᶜ] φ`` (eq. 3.59);
-    the predicted response ``U φ`` (eq. 3.60, eq. 3.61) gives the predicted MIF.
-
-    **Arguments:** ``U`` (n, C); ``forces`` (e, C) force vector of each run at the e
-    exciters, or None for unit single-point runs (then e = C and the force is φ).
-
-    **Returns:** the force vector (unit norm, largest component positive), or None where
-    the runs are linearly dependent over the measured DoFs (e.g. C > 2n).
-    """
-    U = _complex_array("U", U, 2)
-    F = np.eye(U.shape[1]) if forces is None else _real_array("forces", forces, 2)
-    if F.shape[1] != U.shape[1]:
-        raise ValueError(f"forces has {F.shape[1]} runs (columns) but U has {U.shape[1]}")
-    R = U.real.T @ U.real
-    pair = _gram_eig(R, R + U.imag.T @ U.imag)  # eq. 3.57, eq. 3.58
-    if pair is None:
-        return None
-    f = F @ pair[1]  # eq. 3.59
-    return _normalise(f) if np.linalg.norm(f) > 0 else None
-
-
-def _mass_factor(name: str, masses, c: int) -> np.ndarray:
-    """L with L Lᵀ = reduced mass matrix M_e (given as (c,) diagonal or (c, c))."""
-    m = _real_array(name, masses)
-    if m.shape == (c,):
-        if np.any(m <= 0):
-            raise ValueError(f"{name} must be positive")
-        return np.diag(np.sqrt(m))
-    if m.shape != (c, c):
-        raise ValueError(f"{name} must have shape ({c},) or ({c}, {c}), got {m.shape}")
-    try:
-        return np.linalg.cholesky(0.5 * (m + m.T))
-    except np.linalg.LinAlgError:
-        raise ValueError(f"{name} must be symmetric positive definite") from None
-
-
-def force_lewis_wrisley(
-    H_ee: Complex[np.ndarray, "c c"], masses: Float[np.ndarray, " c"] | Float[np.ndarray, "c c"]
-) -> Float[np.ndarray, " c"]:
-    """Force ∝ mass × deflection at the exciters, Lewis & Wrisley (1950); thesis §3.4, §5.4.1.
-
-    Under damping proportional to mass the appropriated force ``ωDφ`` (eq. 3.52) is
-    proportional to ``Mφ``; with the mass model reduced to the exciter points, M_e, the
-    tuning sets ``f ← M_e Im(û_e)`` and repeats with the measured quadrature deflection
-    at the exciters. Its fixed point is the eigenvector of ``M_e Im(H_ee)`` with the
-    largest |eigenvalue| (found from the symmetric form ``Lᵀ Im(H_ee) L``, M_e = LLᵀ).
-
-    **Arguments:** ``H_ee`` (C, C) admittance (m/N) between the exciters at the mode's
-    frequency; ``masses`` (C,) lumped masses or (C, C) reduced mass matrix (kg).
-
-    **Returns:** the force vector (unit norm, largest component positive).
-    """
-    H = _complex_array("H_ee", H_ee, 2)
-    if H.shape[0] != H.shape[1]:
-        raise ValueError(f"H_ee must be square (exciters × exciters), got shape {H.shape}")
-    L = _mass_factor("masses", masses, H.shape[0])
-    S = L.T @ (0.5 * (H.imag + H.imag.T)) @ L
-    mu, v = np.linalg.eigh(S)
-    return _normalise(L @ v[:, np.argmax(np.abs(mu))])
-
-
-def force_hunt(
-    H_ee: Complex[np.ndarray, "c c"], masses: Float[np.ndarray, " c"] | Float[np.ndarray, "c c"]
-) -> Float[np.ndarray, " c"] | None:
-    """Force from the real/total response eigenproblem at the exciters, Hunt et al. (1984).
-
-    As thesis eq. 3.57, eq. 3.58 but, as the thesis describes Hunt's method (§5.4.1), with
-    the responses at the exciter locations only and weighted by the reduced mass matrix:
-    ``(Re Hᵀ M_e Re H) φ = λ (Re Hᵀ M_e Re H + Im Hᵀ M_e Im H) φ``, smallest λ.
-
-    **Arguments:** ``H_ee`` (C, C) admittance between the exciters (m/N); ``masses``
-    (C,) lumped masses or (C, C) reduced mass matrix (kg).
-
-    **Returns:** the force vector (unit norm, largest component positive), or None when
-    H_ee is singular.
-    """
-    H = _complex_array("H_ee", H_ee, 2)
-    if H.shape[0] != H.shape[1]:
-        raise ValueError(f"H_ee must be square (exciters × exciters), got shape {H.shape}")
-    L = _mass_factor("masses", masses, H.shape[0])
-    Re, Im = L.T @ H.real, L.T @ H.imag  # ‖L^T x‖² = xᵀ M_e x
-    R = Re.T @ Re
-    pair = _gram_eig(R, R + Im.T @ Im)
-    return None if pair is None else _normalise(pair[1])
-
-
-def force_asher(H_ee: Complex[np.ndarray, "c c"]) -> tuple[Float[np.ndarray, " c"], float]:
-    """Null vector of the real admittance at the exciters, Asher (1958); thesis §3.4, §5.4.1.
-
-    A normal mode needs ``Re(û_e) = Re(H_ee) f = 0``, non-trivial only where
-    ``det Re(H_ee(ω)) = 0`` (Asher's indicator |H| = 0). At such a frequency the force
-    is the eigenvector of Re(H_ee) with the smallest |eigenvalue|; :func:`appropriate`
-    searches the frequency.
-
-    **Arguments:** ``H_ee`` (C, C) admittance between the exciters (m/N).
-
-    **Returns:** ``(force, ratio)``: the force (unit norm, largest component positive)
-    and |smallest| / |largest| eigenvalue of Re(H_ee), 0 at an exact zero of the
-    determinant.
-    """
-    H = _complex_array("H_ee", H_ee, 2)
-    if H.shape[0] != H.shape[1]:
-        raise ValueError(f"H_ee must be square (exciters × exciters), got shape {H.shape}")
-    mu, v = np.linalg.eigh(0.5 * (H.real + H.real.T))
-    i = int(np.argmin(np.abs(mu)))
-    big = float(np.max(np.abs(mu)))
-    return _normalise(v[:, i]), (float(abs(mu[i]) / big) if big > 0 else 0.0)
 
 
 # --------------------------------------------------------------------------- model level
