@@ -6,7 +6,6 @@ the recovered factors carry a data error of a few 1e-6).
 """
 
 import json
-import sys
 
 import jax.numpy as jnp
 import numpy as np
@@ -208,13 +207,6 @@ def test_unreadable_files_exit_2(case, tmp_path):
         result = runner.invoke(app, args)
         assert result.exit_code == 2, result.output
         assert named in result.output and "Traceback" not in result.output
-
-
-def test_plots_without_matplotlib_say_what_to_install(case, monkeypatch):
-    d, *_ = case
-    monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib → ImportError
-    with pytest.raises(ImportError, match=r"jaxfem\[plot\]"):
-        plot_mac(np.eye(2), ["1", "2"], ["1", "2"], d / "m.png")
 
 
 def test_plot_functions(tmp_path):

@@ -1,10 +1,8 @@
 """Correlation and updating plots: MAC matrix, frequency deviations, convergence.
 
-Each function draws one figure on a private Agg canvas (``matplotlib.figure.Figure``,
+Each function draws one figure on a private Agg canvas (``identification._plots._figure``:
 never pyplot, so no global backend or figure registry is touched), writes it as a PNG
-and returns the path. Matplotlib is imported inside the functions: it is the optional
-``plot`` extra (``pip install 'jaxfem[plot]'``). Frequency deviations are percentages,
-Δf = 100 (f_model − f_test) / f_test (thesis eq. 4.1); NaN marks an unpaired mode.
+and returns the path. Frequency deviations are percentages, Δf = 100 (f_model − f_test) / f_test (thesis eq. 4.1); NaN marks an unpaired mode.
 """
 
 from __future__ import annotations
@@ -14,26 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-_DPI = 120
-
-
-def require_matplotlib() -> None:
-    """Raise ``ImportError`` with the install hint when matplotlib is missing."""
-    try:
-        import matplotlib  # noqa: F401
-    except ImportError as err:
-        raise ImportError("plots need matplotlib: install jaxfem[plot] (pip install 'jaxfem[plot]')") from err
-
-
-def _figure(width: float, height: float):
-    """A figure on its own Agg canvas (no pyplot state)."""
-    require_matplotlib()
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(width, height), dpi=_DPI, layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig
+from identification._plots import _figure
 
 
 def _save(fig, path: str | Path) -> Path:
