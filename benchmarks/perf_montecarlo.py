@@ -15,7 +15,21 @@ Reported: updated samples per second and the ratios, iterations, the largest fac
 difference to the full-solve results on the samples both converged, failures,
 fallbacks to full solves and the peak resident memory of the process.
 
-Usage: ``python -m benchmarks.perf_montecarlo [--samples 16] [--modes 10] [--json OUT]``.
+Then the pipeline a user would otherwise build (issue 13, :mod:`benchmarks.scipy_pipeline`):
+the same residual, pairing, Gauss–Newton iteration, start (the batched samples' θ) and
+tolerance in NumPy/SciPy — ``scipy.linalg.eigh`` (subset, stiffness-standardised), one
+refinement sweep with element-level K products, and the analytic Jacobian (φᵀK_iφ and the
+modal expansion over the computed modes plus the static term of the omitted ones, eq.
+3.18, eq. 3.23, eq. 3.28, eq. 3.29) — on the same samples, split over two spawned
+single-threaded processes (one per core of the 2-core machine; ``--processes``); also
+from the initial model, and bare (the expansion truncated to the computed modes, no
+refinement) from the batched samples' start. Its matrices come from jaxfem and are
+checked against it first (K(θ) at a random θ; λ and Cφ at θ = 0 against ``model_modes``
+and the full dense solve). Reported as the other rows, with the largest factor
+difference to the batched results (1 device) or the plain loop, and the ratio "batched
+1 device / scipy pipeline" (samples per second, the same start; the issue's target is ≥ 2).
+
+Usage: ``python -m benchmarks.perf_montecarlo [--samples 16] [--modes 10] [--processes 2] [--json OUT]``.
 """
 
 from __future__ import annotations
@@ -37,6 +51,7 @@ jax.config.update("jax_enable_x64", True)
 
 import numpy as np
 
+from benchmarks.scipy_pipeline import ReferenceProblem, ScipyPipeline, verify
 from updating import Options
 from updating._montecarlo import Runner, _record, default_study, tree_parameters
 
@@ -47,12 +62,56 @@ def _timed(fn):
     return out, time.perf_counter() - t
 
 
+def _difference(a: dict, b: dict) -> tuple[float, int]:
+    """Largest |α difference| on the samples both converged, and their number."""
+    both = (a["status"] == 0) & (b["status"] == 0)
+    return (float(np.max(np.abs(a["alpha"][both] - b["alpha"][both]))) if both.any() else float("nan")), int(both.sum())
+
+
+def scipy_rows(out: dict, args, g, f, phi, start, batched: dict, plain: dict) -> None:
+    """The SciPy pipeline on the same samples: from the batched samples' start (compared
+    with the batched results), from the initial model (compared with the plain loop), and
+    its bare variant (truncated expansion, no refinement) from the batched samples' start."""
+    S = f.shape[0]
+    reference = ReferenceProblem.from_problem(g.problem, shift=g.kinds["subspace"].shift,
+                                              tolerance=args.tolerance, max_iterations=16)
+    checks = verify(reference, g.problem)
+    out["scipy_checks"] = checks
+    print("scipy pipeline checks: K(θ) {K_rel:.1e} (assembled), {K_elements_rel:.1e} (elements), M(θ) {M_rel:.1e} "
+          "relative; at θ = 0 λ {lam_rel_dense_modes:.1e}, Cφ {phi_rel_dense_modes:.1e} from the full dense solve, "
+          "λ {lam_rel_model_modes:.1e}, Cφ {phi_rel_model_modes:.1e} from model_modes (jaxfem.eigh)".format(**checks))
+    f, phi = np.asarray(f), np.asarray(phi)
+    pool, setup = _timed(lambda: ScipyPipeline(reference, args.processes))  # spawn, imports, warm-up
+    bare = {"refine": False, "expansion": "subset"}
+    with pool:
+        for key, theta0, variant, other, what, against in (
+                ("scipy_pipeline", start, {}, batched, "error-free update", "batched (1 device)"),
+                ("scipy_pipeline_from_initial", np.zeros_like(np.asarray(start)), {}, plain, "initial model",
+                 "plain loop"),
+                ("scipy_pipeline_bare", start, bare, batched, "error-free update", "batched (1 device)")):
+            got, t = _timed(lambda th=theta0, v=variant: pool.update(th, f, phi, **v))
+            diff, compared = _difference(got, other)
+            out[key] = {"seconds": t, "samples_per_s": S / t, "setup_s": setup, "processes": args.processes,
+                        "variant": {"standardise": reference.standardise, "refine": reference.refine,
+                                    "expansion": reference.expansion, **variant},
+                        "failed": int(np.sum(got["status"] > 0)), "iterations": float(got["iterations"].mean()),
+                        "max_alpha_difference": diff, "compared_with": against, "compared_samples": compared}
+            label = "scipy pipeline" + (", bare (subset expansion, no refinement)" if variant else "")
+            print(f"{label}, {args.processes} processes, from the {what}: {S / t:7.3f} samples/s  (setup "
+                  f"{setup:.1f} s, {out[key]['failed']} failed, {got['iterations'].mean():.1f} iterations; max |Δα| to "
+                  f"the {against} {diff:.2e} on {compared})")
+    ratio = out["batched_1_devices"]["samples_per_s"] / out["scipy_pipeline"]["samples_per_s"]
+    out["ratio_batched_1_device_to_scipy_pipeline"] = ratio
+    print(f"batched 1 device / scipy pipeline: ×{ratio:.2f} (samples per second, the same start)")
+
+
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--samples", type=int, default=16)
     ap.add_argument("--modes", type=int, default=10)
     ap.add_argument("--error", type=float, default=0.01, help="relative shape error (fraction)")
     ap.add_argument("--tolerance", type=float, default=1e-9, help="largest factor change of the last step")
+    ap.add_argument("--processes", type=int, default=2, help="worker processes of the SciPy pipeline")
     ap.add_argument("--json", default=None)
     args = ap.parse_args(argv)
     n, S = args.modes, args.samples
@@ -92,6 +151,8 @@ def main(argv=None) -> dict:
         _, compile_s = _timed(lambda r=runner: (r.reference_update(n), r.group(n).sample_start("subspace"),
                                                 r.group(n).data(study, 0, S)))
         got, t = _timed(lambda r=runner: r.chunk(n, 0, S))
+        if (d, v) == (1, 1):
+            batched, start = got, runner.group(n).sample_start("subspace").theta
         both = (got["status"] == 0) & (same["status"] == 0)
         diff = float(np.max(np.abs(got["alpha"][both] - same["alpha"][both]))) if both.any() else float("nan")
         plain = (got["status"] == 0) & (ref["status"] == 0)
@@ -106,6 +167,7 @@ def main(argv=None) -> dict:
               f"same-start loop (setup {compile_s:.1f} s, {out[key]['failed']} failed, "
               f"{int(got['fallback'].sum())} fallbacks, {int(got['refreshes'].sum())} refreshes, {got['iterations'].mean():.1f} iterations; max |Δα| to full "
               f"{diff:.2e} on {int(both.sum())}, to the plain loop {diff_plain:.2e} on {int(plain.sum())})")
+    scipy_rows(out, args, g, f, phi, start, batched, ref)
     out["peak_rss_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"peak resident memory: {out['peak_rss_mib']:.0f} MiB")
     if args.json:
