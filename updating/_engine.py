@@ -158,9 +158,8 @@ def run(theta0: Float[Array, " p"], problem: Problem, eigensolver: AbstractEigen
     history = History(jnp.full((h, n_p), nan), jnp.full(h, nan), jnp.full((h, n_e), nan), jnp.full((h, n_e), nan))
 
     def emit(k, row):
-        if progress is not None:
-            jax.debug.callback(lambda k, a, c, d, m: progress(int(k), np.asarray(a), float(c), np.asarray(d),
-                                                              np.asarray(m)), k, *row, ordered=True)
+        jax.debug.callback(lambda k, a, c, d, m: progress(int(k), np.asarray(a), float(c), np.asarray(d),
+                                                          np.asarray(m)), k, *row, ordered=True)
 
     def body(s: State) -> State:
         new, opt, _ = solver.step(fn, s.theta, (problem, s.warm), options, eqx.combine(s.solver, static),
@@ -176,7 +175,8 @@ def run(theta0: Float[Array, " p"], problem: Problem, eigensolver: AbstractEigen
         write = first | moved
         history = jax.tree.map(lambda hist, r: hist.at[slot].set(jnp.where(write, r, hist[slot])), s.history,
                                History(*row))
-        jax.lax.cond(write, lambda: emit(slot, row), lambda: None)
+        if progress is not None:
+            jax.lax.cond(write, lambda: emit(slot, row), lambda: None)
         converged = (moved & (change <= settings.tolerance)) | (opt.terminate & ~moved)
         steps = s.steps + 1
         done = converged | (accepted >= settings.max_iterations) | (steps >= settings.max_steps) \
