@@ -19,8 +19,8 @@ Then the pipeline a user would otherwise build (issue 13, :mod:`benchmarks.scipy
 the same residual, pairing, Gauss–Newton iteration, start (the batched samples' θ) and
 tolerance in NumPy/SciPy — ``scipy.linalg.eigh`` (subset, stiffness-standardised), one
 refinement sweep with element-level K products, and the analytic Jacobian (φᵀK_iφ and the
-modal expansion over the computed modes plus the static term of the omitted ones, eq.
-3.18, eq. 3.23, eq. 3.28, eq. 3.29) — on the same samples, split over two spawned
+modal expansion over the computed modes plus the static term of the omitted ones,
+eq. 3.18, eq. 3.23, eq. 3.28, eq. 3.29) — on the same samples, split over two spawned
 single-threaded processes (one per core of the 2-core machine; ``--processes``); also
 from the initial model, and bare (the expansion truncated to the computed modes, no
 refinement) from the batched samples' start. Its matrices come from jaxfem and are

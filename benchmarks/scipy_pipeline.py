@@ -21,7 +21,7 @@ M(θ) = M_0 + Σ_k (e^θ_k − 1) M_k (eq. 3.1), and the same Gauss–Newton ite
    entries — and Gauss–Newton jitters at α changes of 1e-9…2e-8, above the benchmark's
    tolerance of 1e-9; refined, its changes fall to 1e-11 in 4–5 steps;
 3. eigenvalue derivatives ∂λ_r/∂θ_k = φ_rᵀ(∂K/∂θ_k − λ_r ∂M/∂θ_k)φ_r (eq. 3.18 with
-   mass-normalised φ; ∂K/∂θ_k = e^θ_k K_k, eq. 3.19, eq. 3.20);
+   mass-normalised φ and ∂K/∂θ_k = e^θ_k K_k);
 4. eigenvector derivatives by the modal expansion ∂φ_r/∂θ_k = Σ_s c_s φ_s (eq. 3.23), c_s
    of eq. 3.28 for s ≠ r (pairs with |λ_s − λ_r| ≤ 1e-6·|λ_r| left out) and the
    mass-normalisation term c_r of eq. 3.29 (zero for stiffness factors), **truncated to
