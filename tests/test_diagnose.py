@@ -12,8 +12,9 @@ from benchmarks.frames import frame_bdf
 from identification import ModalData, Sensors, observation_matrix
 from jaxfem.io import read_bdf_text
 from updating import Options, Parameter, ParameterSet
-from updating._diagnose import DiagnoseOptions, _halves, add_effect, diagnose
-from updating._effects import Effect, at_reference, elements_at
+from updating._diagnose import DiagnoseOptions, add_effect, diagnose
+from updating._effects import Effect, at_reference
+from updating._topology import elements_at, halves
 
 NOISE_F, NOISE_S = 0.002, 0.01  # 0.2 % on frequencies, 1 % on shape components
 N_MODES = 12
@@ -78,11 +79,11 @@ def test_boundary_spring(frame):
 def test_stiffness_of_half_a_group(frame):
     """Groups of 8 beams here (in the 8-group frame a half is 2 beams at one grid, which
     the data cannot tell from a flexible joint there): the lower-x half of pid 1, the
-    half-group the diagnosis generates first (``_halves``, as its candidate list has it;
+    half-group the diagnosis generates first (``halves``, as its candidate list has it;
     a diagnosis of noise-free data picked the same split, at the cost of a full run)."""
     model = jaxfem.build_model(read_bdf_text(frame_bdf(2, 2, 4, n_groups=4)))
     sensors = frame[1]
-    eids, label = _halves(model, 1)[0]
+    eids, label = halves(model, 1)[0]
     assert (eids.tolist(), label) == ([1, 3, 5, 7], "pid 1, x ≤ 0.25 m")
     split = Effect("stiffness", pids=(1,), eids=tuple(int(e) for e in eids), label=label)
     truth = jaxfem.correct(model, [list(split.eids)], jnp.array([-0.3]))

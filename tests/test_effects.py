@@ -1,5 +1,6 @@
 """Effects on a model: structural edits, frequency-dependent stiffness solved per mode,
-and the command-line effect syntax."""
+one parameterisation per effect (batched-fit masks, engine parameters, fitted values),
+candidates and plausibility by kind, and the command-line effect syntax."""
 
 import equinox as eqx
 import jax
@@ -11,14 +12,21 @@ import scipy.linalg as sl
 import jaxfem
 from benchmarks.frames import frame_bdf
 from jaxfem.io import read_bdf_text
+from updating import AbstractEffect
 from updating._effects import (
+    KINDS,
+    AddedMass,
+    BoundarySpring,
     Effect,
+    FrequencyDependentStiffness,
+    GroupMass,
+    GroupStiffness,
+    Joint,
     at_reference,
-    elements_at,
     parse_effect,
-    total_mass,
 )
 from updating._parameters import Parameter, parameterise
+from updating._topology import elements_at, stiffness_pids, structural_pids, total_mass
 
 
 @pytest.fixture(scope="module")
@@ -123,3 +131,86 @@ def test_law_coefficient_is_an_updating_parameter(model):
     assert float(updated.viscoelastic.a) == pytest.approx(0.3)
     with pytest.raises(ValueError, match="frequency law"):
         parameterise(model, [Parameter("a", "a", pids=(3,))])[1].apply(model, jnp.zeros(1))
+
+
+def _shared_grid(model):
+    node = next(int(n) for n in model.node_ids if len(set(elements_at(model, int(n)).values())) == 2)
+    return node, tuple(sorted(set(elements_at(model, node).values())))
+
+
+def _examples(model):
+    node, pids = _shared_grid(model)
+    f = [5.0, 20.0, 80.0]
+    return [GroupStiffness(pids=(2,), alpha=0.1), GroupMass(pids=(7,), eids=(), beta=-0.05),
+            FrequencyDependentStiffness(pids=(3,), alpha=0.05, a=0.1, f_ref_hz=60.0),
+            Joint(nodes=(node,), pids=pids).at_reference(model, f), AddedMass(nodes=(14,), m=3.0),
+            BoundarySpring(nodes=(14,)).at_reference(model, f), BoundarySpring(nodes=(1,)).at_reference(model, f)]
+
+
+def test_one_parameterisation_per_effect(model):
+    """At the same θ the batched fit's masks (``extension``), the engine's parameters
+    (``parameters``) and the fitted values (``updated``, applied to the nominal model)
+    give the same model: with a₀ = 0.1 the law's ``a = a₀ + (e^θ₁ − 1)`` everywhere."""
+    for effect in _examples(model):
+        extended = effect.apply(model)
+        theta = np.log1p(np.array([0.2, 0.15]))[: len(effect.parameters(model, extended))]
+        masked = effect.extension(model, extended)(extended, jnp.asarray(theta))
+        base, par = parameterise(extended, effect.parameters(model, extended))
+        engine = par.apply(base, jnp.asarray(theta))
+        fitted = effect.updated(theta)
+        expected = _freqs(fitted.apply(model))
+        for m in (masked, engine):
+            np.testing.assert_allclose(_freqs(m), expected, rtol=1e-10, err_msg=effect.kind)
+        assert not np.allclose(_freqs(extended), expected, rtol=1e-4), effect.kind
+        assert effect.updated(np.zeros_like(theta)) == effect  # θ = 0: the reference
+    law = FrequencyDependentStiffness(pids=(3,), alpha=0.05, a=0.1, f_ref_hz=60.0).updated(np.log1p([0.2, 0.15]))
+    assert (law.alpha, law.a) == pytest.approx((1.05 * 1.2 - 1, 0.25), abs=1e-14)
+
+
+def test_factory_builds_the_typed_effect_and_round_trips(model):
+    for effect in _examples(model):
+        assert isinstance(effect, AbstractEffect) and effect.kind in KINDS
+        again = Effect(effect.kind, **effect.location(), values=effect.values, label=effect.label)
+        assert type(again) is type(effect) and again == effect
+        row = effect.to_json()
+        assert list(row) == ["kind", "pids", "eids", "nodes", "where", "parameters"]
+        assert row["parameters"] == effect.values and row["where"] == effect.where()
+    assert Effect("joint", nodes=(6001,), values={"k_trans": 1e8, "k_rot": 4e4}) == Joint(nodes=(6001,), k_trans=1e8, k_rot=4e4)
+    assert Effect("stiffness", pids=(3,)).values == {} and Effect("mass", pids=(1, 2)).where() == "pid 1, 2"
+    for kind, kw in (("added_mass", {"pids": (1,)}), ("joint", {"nodes": (1,), "values": {"m": 1.0}}),
+                     ("joint", {}), ("stiffness", {}), ("frequency_dependent_stiffness", {"eids": (1,)}),
+                     ("spring", {"nodes": (1,)})):
+        with pytest.raises(ValueError, match="effect"):
+            Effect(kind, **kw)
+    with pytest.raises(ValueError, match="k_rot"):
+        Joint(nodes=(_shared_grid(model)[0],), pids=_shared_grid(model)[1], k_trans=1.0).apply(model)
+
+
+def test_candidates_by_kind(model):
+    stiffness = GroupStiffness.candidates(model)
+    whole = {e.pids[0] for e in stiffness if not e.eids}
+    assert whole == set(stiffness_pids(model)) >= set(range(1, 9))  # the 8 beam groups and the rest
+    assert {e.pids[0] for e in stiffness if e.eids} <= set(structural_pids(model))  # halves: beams and rods
+    assert {e.pids[0] for e in FrequencyDependentStiffness.candidates(model)} == whole
+    assert not any(e.eids for e in FrequencyDependentStiffness.candidates(model))
+    assert {e.pids[0] for e in GroupMass.candidates(model)} == set(structural_pids(model)) & whole
+    joints = Joint.candidates(model)
+    assert joints and all(len(e.pids) == 2 and len(e.nodes) == 1 for e in joints)
+    assert _shared_grid(model)[0] in {e.nodes[0] for e in joints}
+    supports = BoundarySpring.candidates(model)
+    assert [e.nodes for e in supports] == [(n,) for n in (1, 2, 3, 4)]  # the clamped base
+    assert set(supports[0].at_reference(model, [20.0]).values) == {"k_trans", "k_rot"}
+
+
+def test_plausibility(model):
+    mass = total_mass(model)
+    assert GroupStiffness(pids=(1,), alpha=0.3).plausibility(mass) == []
+    assert "outside" in GroupMass(pids=(1,), beta=-0.7).plausibility(mass)[0]
+    law = FrequencyDependentStiffness(pids=(3,), alpha=0.0, a=0.8, f_ref_hz=50.0)
+    assert law.plausibility(mass) == ["a = 0.80 beyond ±0.5"]
+    assert AddedMass(nodes=(14,), m=0.1 * mass).plausibility(mass) == []
+    assert "% of the total" in AddedMass(nodes=(14,), m=0.5 * mass).plausibility(mass)[0]
+    node, pids = _shared_grid(model)
+    ref = Joint(nodes=(node,), pids=pids).at_reference(model, [20.0])
+    assert ref.updated([np.log(10.0)]).plausibility(mass, ref) == []
+    assert "rigid" in ref.updated([np.log(2e3)]).plausibility(mass, ref)[0]

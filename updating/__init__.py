@@ -23,7 +23,14 @@ from ._diagnose import DiagnoseOptions as DiagnoseOptions
 from ._diagnose import Diagnosis as Diagnosis
 from ._diagnose import add_effect as add_effect
 from ._diagnose import diagnose as diagnose
+from ._abstract_effect import AbstractEffect as AbstractEffect
+from ._effects import AddedMass as AddedMass
+from ._effects import BoundarySpring as BoundarySpring
 from ._effects import Effect as Effect
+from ._effects import FrequencyDependentStiffness as FrequencyDependentStiffness
+from ._effects import GroupMass as GroupMass
+from ._effects import GroupStiffness as GroupStiffness
+from ._effects import Joint as Joint
 from ._effects import at_reference as at_reference
 from ._effects import effect_parameters as effect_parameters
 from ._effects import parse_effect as parse_effect

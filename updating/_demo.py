@@ -21,8 +21,9 @@ import jaxfem
 from identification import Sensors, write_uff
 from jaxfem.io import read_bdf
 
-from ._effects import Effect, joint_reference
+from ._effects import Effect
 from ._parameters import Options, Parameter, ParameterSet
+from ._topology import joint_reference
 from ._simulation import Noise, simulate_test
 
 HIDDEN = "a flexible joint at the fin root (RBE2 1029 → 6001, k_rot = 1/300 of its reference)"

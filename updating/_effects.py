@@ -1,107 +1,289 @@
-"""Candidate physical effects: small parameterised extensions of a model.
+"""Candidate physical effects: small parameterised extensions of a model, one type per kind.
 
-An :class:`Effect` names a kind, where it sits (property ids, element ids, grids, in
-the bulk data's own ids) and its physical values; ``effect.apply(model)`` (also
-``model.with_effect(effect)``) returns the extended model. Kinds:
+Every effect is a final ``eqx.Module``: where it sits (property ids, element ids, grids,
+in the bulk data's own ids; static) and its physical values (SI; None until set). Each
+knows how to ``apply`` itself to a model (also ``model.with_effect(effect)``), its
+location in words (``where``), its starting values (``at_reference``), its free
+parameters for the updating engine (``parameters``) and, for batched fits, as traced masks
+(``extension``), its values at fitted log-factors θ (``updated``), whether they are
+plausible (``plausibility``) and, as a classmethod, the candidates of its kind that a
+model offers (``candidates``). The kinds, by their JSON/CLI names:
 
-- ``stiffness`` / ``mass``: factor α on a property group or part of one (eq. 3.1);
-- ``joint``: a rigid connection (RBE2, or a grid shared by two property groups) made
-  flexible: a 6-DoF spring, translations ``k_trans`` (N/m), rotations ``k_rot`` (N·m/rad);
-- ``added_mass``: a point mass ``m`` (kg) at a grid;
-- ``boundary_spring``: springs to ground at a grid, ``k`` (N/m) on translations of an
-  unconstrained grid, or ``k_trans``/``k_rot`` on the released components of an SPC;
-- ``frequency_dependent_stiffness``: ``E(f) = E0 (1 + a ln(f/f_ref))`` on a group with the
-  factor ``alpha`` on E0 (:class:`jaxfem.Viscoelastic`).
+- ``stiffness`` / ``mass`` (:class:`GroupStiffness`, :class:`GroupMass`): factor on a
+  property group or part of one (eq. 3.1);
+- ``joint`` (:class:`Joint`): a rigid connection made flexible;
+- ``added_mass`` (:class:`AddedMass`): a point mass at a grid;
+- ``boundary_spring`` (:class:`BoundarySpring`): springs to ground at a grid;
+- ``frequency_dependent_stiffness`` (:class:`FrequencyDependentStiffness`):
+  ``E(f) = E0 (1 + α)(1 + a ln(f/f_ref))`` on a group (:class:`jaxfem.Viscoelastic`).
 
-For fitting, :class:`Extension` expresses an effect's free parameters as traced masks on
-a model, so that many candidates of the same model structure share one compiled solver
-and are batched with ``vmap``.
+:func:`Effect` is the convenient constructor from a kind name and a values dict.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import fields, replace
+from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float
 
 import jaxfem
 from jaxfem import Model
 from jaxfem import _edit as edit
 
+from ._abstract_effect import AbstractEffect, ids_field, label_field, value_field
+from ._extension import K_BLOCKS, Extension, extension
 from ._parameters import Parameter
+from ._topology import (
+    constrained_components,
+    elements_at,
+    joint_reference,
+    masters,
+    property_groups,
+    stiffness_pids,
+    structural_pids,
+    total_mass,
+)
 
-KINDS = ("stiffness", "mass", "joint", "added_mass", "boundary_spring", "frequency_dependent_stiffness")
-_K_BLOCKS = ("beams", "rods", "springs", "bushes")
-_THETA_MAX = 25.0  # |log-factor| beyond which a trial step is clipped (e^25 ≈ 7e10)
-_M_BLOCKS = ("beams", "rods", "masses")
+SCAN = (0.0, -1.5, -3.0, -4.5, -6.0, 1.5)  # log-factors tried before fitting a joint, support or mass
+SCAN_ADDED = (-3.0, -2.0, -1.0, 0.0, 1.0, 2.0, 3.0)  # ... a dormant added mass or spring (× its reference)
+SCAN_LAW = tuple((np.log1p(alpha), np.log1p(a)) for alpha in (-0.2, 0.0, 0.2)
+                 for a in (-0.4, -0.2, 0.0, 0.2, 0.4))  # (E0 factor, a − a₀) of a frequency law
 
 
-@dataclass(frozen=True)
-class Effect:
-    """A physical effect at a place in the model, with its values (SI units).
+# ---------------------------------------------------------------------------------------
+# factors on a property group
 
-    ``values``: ``alpha``/``beta`` (relative factors), ``k_trans`` N/m, ``k_rot``
-    N·m/rad, ``k`` N/m, ``m`` kg, ``a`` (1), ``f_ref_hz`` Hz.
-    """
 
-    kind: str
-    pids: tuple[int, ...] = ()
-    eids: tuple[int, ...] = ()
-    nodes: tuple[int, ...] = ()
-    values: dict = field(default_factory=dict, hash=False, compare=False)
-    label: str = ""
+def _combined(a0: float, theta) -> float:
+    """(1 + a₀)(1 + α) − 1 with α = e^θ − 1: factors multiply (eq. 3.1); exact for a₀ = 0."""
+    alpha = float(np.expm1(theta))
+    return a0 + alpha + a0 * alpha
 
-    def __post_init__(self):
-        if self.kind not in KINDS:
-            raise ValueError(f"effect kind {self.kind!r} is not one of {KINDS}")
 
-    def where(self) -> str:
-        if self.label:
-            return self.label
-        parts = [f"{name} {', '.join(map(str, ids))}" for name, ids in
-                 (("pid", self.pids), ("eid", self.eids), ("node", self.nodes)) if ids]
-        return "; ".join(parts)
+class AbstractGroupEffect(AbstractEffect):
+    """A factor (value ``factor_name``) on the stiffness (``scales`` "k") or mass ("m")
+    of a property group (``pids``) or part of one (``eids``): the element matrices scaled
+    by 1 + factor (eq. 3.1). Free parameter θ = ln(1 + α'), factors multiplying."""
+
+    factor_name: ClassVar[str]
+
+    def __check_init__(self):
+        if not (self.pids or self.eids):
+            raise ValueError(f"effect {self.kind}: give pids or eids")
 
     def elements(self, model: Model) -> np.ndarray:
-        """Element ids of the effect's group (``eids`` if given, else the ``pids``)."""
+        """Element ids of the group (``eids`` if given, else the ``pids``)."""
         return np.asarray(self.eids, np.int64) if self.eids else model.element_ids(pids=self.pids)
 
+    def _factor(self) -> float:
+        return getattr(self, self.factor_name) or 0.0
+
+    def _parameter(self, name: str) -> Parameter:
+        kind = {"k": "stiffness", "m": "mass"}[self.scales]
+        return Parameter(name, kind, **({"eids": self.eids} if self.eids else {"pids": self.pids}))
+
     def apply(self, model: Model) -> Model:
-        """The model with this effect at its ``values``."""
-        v = self.values
-        if self.kind in ("stiffness", "mass", "frequency_dependent_stiffness"):
-            group = [self.elements(model).tolist()]
-            if self.kind == "stiffness" or self.kind == "frequency_dependent_stiffness":
-                model = jaxfem.correct(model, group, jnp.array([v.get("alpha", 0.0)]))
-            elif self.kind == "mass":
-                model = jaxfem.correct(model, (), None, group, jnp.array([v.get("beta", 0.0)]))
-            if self.kind == "frequency_dependent_stiffness":
-                masks = [jnp.asarray(np.isin(getattr(model, b).ids, group[0]), dtype=jnp.float64) for b in _K_BLOCKS]
-                model = eqx.tree_at(lambda m: m.viscoelastic, model,
-                                    jaxfem.Viscoelastic(*masks, jnp.asarray(float(v.get("a", 0.0))),
-                                                        jnp.asarray(float(v["f_ref_hz"]))),
-                                    is_leaf=lambda x: x is None)
-            return model
-        if self.kind == "added_mass":
-            for node in self.nodes:
-                model = edit.add_mass(model, node, float(v["m"]))[0]
-            return edit.refresh(model)
-        if self.kind == "boundary_spring":
-            for node in self.nodes:
-                fixed = constrained_components(model, node)
-                if fixed:
-                    model = edit.release(model, node)
-                    model = edit.add_ground_springs(model, node, [
-                        v["k_trans"] if c <= 3 else v["k_rot"] for c in fixed], fixed)[0]
-                else:
-                    model = edit.add_ground_springs(model, node, v["k"], (1, 2, 3))[0]
-            return edit.refresh(model)
-        # joint
-        k6 = [v["k_trans"]] * 3 + [v["k_rot"]] * 3
-        for node, master in joint_pairs(model, self):
+        group, factor = [self.elements(model).tolist()], jnp.array([self._factor()])
+        return jaxfem.correct(model, group, factor) if self.scales == "k" else jaxfem.correct(model, (), None, group, factor)
+
+    def at_reference(self, model: Model, f_test_hz) -> AbstractGroupEffect:
+        """No change."""
+        return replace(self, **{self.factor_name: 0.0})
+
+    def parameters(self, before: Model, after: Model) -> tuple[Parameter, ...]:
+        return (self._parameter(self.kind),)
+
+    def extension(self, model: Model, extended: Model) -> Extension:
+        return extension(extended, **{f"{self.scales}_log": self.elements(model)})
+
+    def updated(self, theta) -> AbstractGroupEffect:
+        return replace(self, **{self.factor_name: _combined(self._factor(), np.asarray(theta, float)[0])})
+
+    def plausibility(self, total_mass: float, reference: AbstractEffect | None = None) -> list[str]:
+        f = self._factor()
+        return [] if -0.5 <= f <= 1.0 else [f"factor {f:+.2f} outside [-0.5, 1.0]"]
+
+
+class GroupStiffness(AbstractGroupEffect):
+    """Stiffness factor α of a group, ``K = K₀ + α K_g`` (eq. 3.1). Values: ``alpha`` (1)."""
+
+    pids: tuple[int, ...] = ids_field()
+    eids: tuple[int, ...] = ids_field()
+    label: str = label_field()
+    alpha: float | None = value_field()
+
+    kind = "stiffness"
+    value_names = ("alpha",)
+    factor_name = "alpha"
+    scales = "k"
+    scan = None
+
+    @classmethod
+    def candidates(cls, model: Model) -> list[GroupStiffness]:
+        """Every stiffness property group, and both halves of each beam/rod group."""
+        return [cls(pids=(p,), eids=e, label=lab) for p, e, lab in property_groups(model, stiffness_pids(model), split=True)]
+
+
+class GroupMass(AbstractGroupEffect):
+    """Mass factor β of a group, ``M = M₀ + β M_g`` (eq. 3.1). Values: ``beta`` (1)."""
+
+    pids: tuple[int, ...] = ids_field()
+    eids: tuple[int, ...] = ids_field()
+    label: str = label_field()
+    beta: float | None = value_field()
+
+    kind = "mass"
+    value_names = ("beta",)
+    factor_name = "beta"
+    scales = "m"
+    scan = None
+
+    @classmethod
+    def candidates(cls, model: Model) -> list[GroupMass]:
+        """Every beam/rod property group and both halves of each."""
+        pids = [p for p in stiffness_pids(model) if p in structural_pids(model)]
+        return [cls(pids=(p,), eids=e, label=lab) for p, e, lab in property_groups(model, pids, split=True)]
+
+
+class FrequencyDependentStiffness(AbstractGroupEffect):
+    """A frequency law on a group's stiffness, ``E(f) = E0 (1 + α)(1 + a ln(f/f_ref))``
+    (:class:`jaxfem.Viscoelastic`). Values: ``alpha`` (1), ``a`` (1), ``f_ref_hz`` (Hz).
+
+    Free parameters θ = (ln(1 + α'), ln(1 + a')): a stiffness factor on E0 and the
+    additive change of the coefficient, ``a = a₀ + (e^θ₁ − 1)``, in the batched fits
+    (:class:`~updating._extension.Extension`) and in an update (parameter kind ``a``).
+    """
+
+    pids: tuple[int, ...] = ids_field()
+    eids: tuple[int, ...] = ids_field()
+    label: str = label_field()
+    alpha: float | None = value_field()
+    a: float | None = value_field()
+    f_ref_hz: float | None = value_field()
+
+    kind = "frequency_dependent_stiffness"
+    value_names = ("alpha", "a", "f_ref_hz")
+    factor_name = "alpha"
+    scales = "k"
+    scan = SCAN_LAW
+
+    def __check_init__(self):
+        if not self.pids:
+            raise ValueError(f"effect {self.kind}: give the pids of the layer")
+
+    @classmethod
+    def candidates(cls, model: Model) -> list[FrequencyDependentStiffness]:
+        """Every stiffness property group, whole."""
+        return [cls(pids=(p,), label=lab) for p, _, lab in property_groups(model, stiffness_pids(model), split=False)]
+
+    def apply(self, model: Model) -> Model:
+        model, group = super().apply(model), self.elements(model).tolist()
+        masks = [jnp.asarray(np.isin(getattr(model, b).ids, group), dtype=jnp.float64) for b in K_BLOCKS]
+        law = jaxfem.Viscoelastic(*masks, jnp.asarray(self.a or 0.0), jnp.asarray(self._need("f_ref_hz")))
+        return eqx.tree_at(lambda m: m.viscoelastic, model, law, is_leaf=lambda x: x is None)
+
+    def at_reference(self, model: Model, f_test_hz) -> FrequencyDependentStiffness:
+        """No change, at the geometric mean of the test frequencies."""
+        return replace(self, alpha=0.0, a=0.0, f_ref_hz=float(np.exp(np.mean(np.log(np.asarray(f_test_hz, float))))))
+
+    def parameters(self, before: Model, after: Model) -> tuple[Parameter, ...]:
+        return (self._parameter(self.kind + "_E0"), Parameter(self.kind + "_a", "a", pids=self.pids, bounds=(-0.5, 0.5)))
+
+    def extension(self, model: Model, extended: Model) -> Extension:
+        return extension(extended, k_log=self.elements(model), f_ref=self._need("f_ref_hz"), a0=self.a or 0.0)
+
+    def updated(self, theta) -> FrequencyDependentStiffness:
+        t = np.asarray(theta, float)
+        return replace(super().updated(t[:1]), a=(self.a or 0.0) + float(np.expm1(t[1])))
+
+    def plausibility(self, total_mass: float, reference: AbstractEffect | None = None) -> list[str]:
+        return super().plausibility(total_mass) + ([f"a = {self.a:.2f} beyond ±0.5"] if abs(self.a) > 0.5 else [])
+
+
+# ---------------------------------------------------------------------------------------
+# effects that add elements: springs, bushes, masses
+
+
+class AbstractAddedElements(AbstractEffect):
+    """An effect that adds elements to the model; its one free factor scales all of its
+    values (the new elements' ``k`` or ``m``)."""
+
+    def _new(self, before: Model, after: Model) -> tuple[int, ...]:
+        return tuple(sorted(set(after.element_ids().tolist()) - set(before.element_ids().tolist())))
+
+    def parameters(self, before: Model, after: Model) -> tuple[Parameter, ...]:
+        bounds = (-0.999, 1e3) if self.scales == "k" else (-1.0, 10.0)
+        return (Parameter(self.kind, self.scales, eids=self._new(before, after), bounds=bounds),)
+
+    def extension(self, model: Model, extended: Model) -> Extension:
+        return extension(extended, **{f"{self.scales}_log": self._new(model, extended)})
+
+    def updated(self, theta) -> AbstractAddedElements:
+        t = np.asarray(theta, float)
+        return replace(self, **{name: float(v * np.exp(t[0])) for name, v in self.values.items()})
+
+    def _check_nodes(self):
+        if not self.nodes:
+            raise ValueError(f"effect {self.kind}: give nodes")
+
+
+def _rigid_note(effect: Joint | BoundarySpring, reference: AbstractEffect | None) -> list[str]:
+    k_rot, ref = effect.k_rot, getattr(reference, "k_rot", None)
+    if k_rot is not None and ref is not None and k_rot > 1e3 * ref:
+        return ["joint stiffer than 100× its reference: effectively rigid"]
+    return []
+
+
+class Joint(AbstractAddedElements):
+    """A rigid connection made flexible: a 6-DoF spring (CBUSH). At an RBE2-dependent grid
+    the grid is released and held to its master; at a grid shared by two property groups
+    (``pids``: the first keeps the grid, the others are moved to a new coincident one).
+    Values: ``k_trans`` (N/m) on translations, ``k_rot`` (N·m/rad) on rotations."""
+
+    nodes: tuple[int, ...] = ids_field()
+    pids: tuple[int, ...] = ids_field()
+    label: str = label_field()
+    k_trans: float | None = value_field()
+    k_rot: float | None = value_field()
+
+    kind = "joint"
+    value_names = ("k_trans", "k_rot")
+    scales = "k"
+    scan = SCAN
+
+    def __check_init__(self):
+        self._check_nodes()
+
+    @classmethod
+    def candidates(cls, model: Model) -> list[Joint]:
+        """RBE2 groups holding structural elements, and grids shared by two beam/rod groups."""
+        out = []
+        dep = masters(model)
+        by_master: dict[int, list[int]] = {}
+        for node, master in dep.items():
+            if elements_at(model, node):
+                by_master.setdefault(master, []).append(node)
+        for master, nodes in sorted(by_master.items()):
+            pids = sorted({*elements_at(model, master).values()}) + sorted(
+                {p for n in nodes for p in elements_at(model, n).values()})
+            out.append(cls(pids=tuple(dict.fromkeys(pids)), nodes=tuple(sorted(nodes)),
+                           label=f"RBE2 at grid {master} → {', '.join(map(str, sorted(nodes)))}"))
+        beam_pids = set(structural_pids(model))
+        for node in model.node_ids:
+            at = {p for p in elements_at(model, int(node)).values() if p in beam_pids}
+            if len(at) == 2 and int(node) not in dep:
+                out.append(cls(pids=tuple(sorted(at)), nodes=(int(node),),
+                               label=f"grid {int(node)} between pids {' and '.join(map(str, sorted(at)))}"))
+        return out
+
+    def apply(self, model: Model) -> Model:
+        k6 = [self._need("k_trans")] * 3 + [self._need("k_rot")] * 3
+        dep = masters(model)
+        for node in self.nodes:
+            master = dep.get(node)
             if master is None:  # a grid shared by two groups: the second group gets its own grid
                 model, new = edit.add_grid(model, model.xyz[model.node_index([node])[0]])
                 side = model.element_ids(pids=self.pids[1:])
@@ -112,165 +294,123 @@ class Effect:
                 model = edit.add_bush(model, master, node, k6)[0]
         return edit.refresh(model)
 
+    def at_reference(self, model: Model, f_test_hz) -> Joint:
+        """Slightly flexible (:func:`~updating._topology.joint_reference` of the released side)."""
+        dep = masters(model)
+        if not all(n in dep for n in self.nodes) and len(self.pids) < 2:
+            raise ValueError(f"joint at grid(s) {list(self.nodes)}: not RBE2-dependent; name the two "
+                             "groups, e.g. joint:node=3007;pids=21,22 (the second group is released)")
+        side = [e for n in self.nodes for e, p in elements_at(model, n).items() if n in dep or p in self.pids[1:]]
+        return replace(self, **joint_reference(model, self.nodes, side))
 
-# ---------------------------------------------------------------------------------------
-# Model topology
-
-
-def _own(model: Model, row: int) -> set[int]:
-    node = model.node_ids[row]
-    return {int(c) for n, c in model.dofs.labels if n == node}
-
-
-def masters(model: Model) -> dict[int, int]:
-    """RBE2-dependent grid → the grid whose DoFs carry it (from the DoF map)."""
-    owner = np.asarray(model.dofs.labels[:, 0])
-    out = {}
-    for row, node in enumerate(model.node_ids):
-        idx = model.dofs.index[row]
-        idx = idx[idx < model.n_dof]
-        owners = set(owner[idx].tolist())
-        if idx.size and int(node) not in owners and len(owners) == 1:
-            out[int(node)] = owners.pop()
-    return out
+    def plausibility(self, total_mass: float, reference: AbstractEffect | None = None) -> list[str]:
+        return _rigid_note(self, reference)
 
 
-def constrained_components(model: Model, node: int) -> list[int]:
-    """Components of a grid removed by SPC (not by RBE2 nor auto-SPC)."""
-    row = int(model.node_index([node])[0])
-    if int(node) in masters(model):
+class BoundarySpring(AbstractAddedElements):
+    """Springs to ground at a grid: ``k`` (N/m) on the translations of an unconstrained
+    grid, or ``k_trans`` (N/m) / ``k_rot`` (N·m/rad) on the released components of an SPC."""
+
+    nodes: tuple[int, ...] = ids_field()
+    label: str = label_field()
+    k: float | None = value_field()
+    k_trans: float | None = value_field()
+    k_rot: float | None = value_field()
+
+    kind = "boundary_spring"
+    value_names = ("k", "k_trans", "k_rot")
+    scales = "k"
+    scan = SCAN
+
+    def __check_init__(self):
+        self._check_nodes()
+
+    @classmethod
+    def candidates(cls, model: Model) -> list[BoundarySpring]:
+        """Flexible supports: every SPC'd grid that carries structural elements."""
+        return [cls(nodes=(int(n),), label=f"support at grid {int(n)}") for n in model.node_ids
+                if constrained_components(model, int(n)) and elements_at(model, int(n))]
+
+    def apply(self, model: Model) -> Model:
+        for node in self.nodes:
+            fixed = constrained_components(model, node)
+            if fixed:
+                model = edit.release(model, node)
+                model = edit.add_ground_springs(model, node, [
+                    self._need("k_trans") if c <= 3 else self._need("k_rot") for c in fixed], fixed)[0]
+            else:
+                model = edit.add_ground_springs(model, node, self._need("k"), (1, 2, 3))[0]
+        return edit.refresh(model)
+
+    def at_reference(self, model: Model, f_test_hz) -> BoundarySpring:
+        """On free grids a spring that alone would carry the structure at f₁/10; a released
+        support slightly flexible (:func:`~updating._topology.joint_reference`)."""
+        if not any(constrained_components(model, n) for n in self.nodes):
+            k = total_mass(model) * (2 * np.pi * float(np.min(np.asarray(f_test_hz, float))) / 10) ** 2
+            return replace(self, k=k, k_trans=None, k_rot=None)
+        side = [e for n in self.nodes for e in elements_at(model, n)]
+        return replace(self, k=None, **joint_reference(model, self.nodes, side))
+
+    def plausibility(self, total_mass: float, reference: AbstractEffect | None = None) -> list[str]:
+        return _rigid_note(self, reference)
+
+
+class AddedMass(AbstractAddedElements):
+    """A point mass at a grid (CONM2). Values: ``m`` (kg)."""
+
+    nodes: tuple[int, ...] = ids_field()
+    label: str = label_field()
+    m: float | None = value_field()
+
+    kind = "added_mass"
+    value_names = ("m",)
+    scales = "m"
+    scan = SCAN
+
+    def __check_init__(self):
+        self._check_nodes()
+
+    def apply(self, model: Model) -> Model:
+        for node in self.nodes:
+            model = edit.add_mass(model, node, self._need("m"))[0]
+        return edit.refresh(model)
+
+    def at_reference(self, model: Model, f_test_hz) -> AddedMass:
+        """1 % of the total mass."""
+        return replace(self, m=0.01 * total_mass(model))
+
+    def plausibility(self, total_mass: float, reference: AbstractEffect | None = None) -> list[str]:
+        if self.m > 0.2 * total_mass:
+            return [f"added mass {self.m:.3g} kg is {100 * self.m / total_mass:.0f} % of the total"]
         return []
-    auto = {int(c) for n, c in model.dofs.auto_spc if n == node}
-    idx = model.dofs.index[row]
-    if np.any((idx < model.n_dof) & ~np.isin(model.dofs.labels[np.minimum(idx, model.n_dof - 1), 0], [node])):
-        return []
-    return [c for c in range(1, 7) if c not in _own(model, row) and c not in auto]
-
-
-def joint_pairs(model: Model, effect: Effect) -> list[tuple[int, int | None]]:
-    """(grid, master or None) for each grid of a joint effect."""
-    dep = masters(model)
-    return [(n, dep.get(n)) for n in effect.nodes]
-
-
-def _structural(model: Model):
-    """(block name, element ids, pids, node rows) of beams, rods and bushes."""
-    for name in ("beams", "rods", "bushes"):
-        b = getattr(model, name)
-        if len(b.ids):
-            yield name, b.ids, b.pids, b.nodes
-
-
-def elements_at(model: Model, node: int) -> dict[int, int]:
-    """Structural element id → pid of the elements attached to a grid."""
-    row = int(model.node_index([node])[0])
-    out = {}
-    for _, ids, pids, nodes in _structural(model):
-        hit = np.any(nodes == row, axis=1)
-        out.update({int(e): int(p) for e, p in zip(ids[hit], pids[hit])})
-    return out
-
-
-def total_mass(model: Model) -> float:
-    """Structural plus lumped mass (kg), with the current mass factors."""
-    b, sec, mat = model.beams, model.beam_sections, model.materials
-    xyz = model.xyz
-    total = 0.0
-    if len(b.ids):
-        length = np.linalg.norm(xyz[b.nodes[:, 1]] - xyz[b.nodes[:, 0]], axis=1)
-        s = b.section
-        total += float(jnp.sum((mat.rho[sec.material[s]] * sec.A[s] + sec.nsm[s]) * length * b.m_scale))
-    r, rs = model.rods, model.rod_sections
-    if len(r.ids):
-        length = np.linalg.norm(xyz[r.nodes[:, 1]] - xyz[r.nodes[:, 0]], axis=1)
-        s = r.section
-        total += float(jnp.sum((mat.rho[rs.material[s]] * rs.A[s] + rs.nsm[s]) * length * r.m_scale))
-    return total + float(jnp.sum(model.masses.m * model.masses.m_scale))
-
-
-def _beam_stiffness_scale(model: Model, eids) -> tuple[float, float]:
-    """(max E·A/L, max E·I/L) of beams and rods among ``eids`` (N/m, N·m/rad)."""
-    ea, ei = [0.0], [0.0]
-    for name, sec_name in (("beams", "beam_sections"), ("rods", "rod_sections")):
-        b, sec = getattr(model, name), getattr(model, sec_name)
-        hit = np.isin(b.ids, np.asarray(list(eids), np.int64))
-        if not hit.any():
-            continue
-        s = b.section[hit]
-        length = np.linalg.norm(model.xyz[b.nodes[hit, 1]] - model.xyz[b.nodes[hit, 0]], axis=1)
-        e = np.asarray(model.materials.E)[sec.material[s]]
-        ea.extend((e * np.asarray(sec.A)[s] / length).tolist())
-        inertia = np.maximum(np.asarray(sec.I1)[s], np.asarray(sec.I2)[s]) if name == "beams" else np.asarray(sec.J)[s]
-        ei.extend((e * inertia / length).tolist())
-    return max(ea), max(ei)
-
-
-def joint_reference(model: Model, nodes, side_eids) -> dict:
-    """Starting values of a joint: rotations 10·E·I/L and translations 100·E·A/L of the
-    stiffest element of the released side (a joint slightly softer than rigid)."""
-    ea, ei = _beam_stiffness_scale(model, side_eids)
-    if ei <= 0:
-        raise ValueError(f"joint at grid(s) {list(nodes)}: no beam or rod on the released side")
-    return {"k_trans": 100.0 * ea, "k_rot": 10.0 * ei}
 
 
 # ---------------------------------------------------------------------------------------
-# Traced parameterisation for batched fits
+# by kind name: the JSON, the command line
 
 
-class Extension(eqx.Module):
-    """An effect's free parameters θ as masks on the model's element scales.
-
-    ``k_scale ← k_scale·exp(θ₀·k_log) + k_add·exp(θ₀)`` per stiffness block (likewise
-    for mass), so θ₀ is a log-factor on a group (``k_log``) or wakes dormant elements
-    (``k_add``: added springs or masses present with scale 0). With ``visco`` set, θ₁
-    gives the law's ``a = exp(θ₁) − 1`` on the ``k_log`` group (reference ``f_ref``).
-    """
-
-    k_log: tuple[Float[Array, " n"], ...]
-    k_add: tuple[Float[Array, " n"], ...]
-    m_log: tuple[Float[Array, " n"], ...]
-    m_add: tuple[Float[Array, " n"], ...]
-    f_ref: Float[Array, ""]
-    visco: bool = eqx.field(static=True)
-
-    @property
-    def n_params(self) -> int:
-        return 2 if self.visco else 1
-
-    def __call__(self, model: Model, theta: Float[Array, " e"]) -> Model:
-        theta = jnp.clip(theta, -_THETA_MAX, _THETA_MAX)  # a wild trial step stays finite
-        s = jnp.exp(theta[0])
-        for name, log, add in zip(_K_BLOCKS, self.k_log, self.k_add):
-            blk = getattr(model, name)
-            model = eqx.tree_at(lambda m, name=name: getattr(m, name).k_scale, model,
-                                blk.k_scale * jnp.exp(theta[0] * log) + add * s)
-        for name, log, add in zip(_M_BLOCKS, self.m_log, self.m_add):
-            blk = getattr(model, name)
-            model = eqx.tree_at(lambda m, name=name: getattr(m, name).m_scale, model,
-                                blk.m_scale * jnp.exp(theta[0] * log) + add * s)
-        if self.visco:
-            law = jaxfem.Viscoelastic(*self.k_log, jnp.expm1(jnp.minimum(theta[1], 1.0)), self.f_ref)  # a ≤ e − 1
-            model = eqx.tree_at(lambda m: m.viscoelastic, model, law, is_leaf=lambda x: x is None)
-        return model
+_TYPES: dict[str, type[AbstractEffect]] = {t.kind: t for t in (
+    GroupStiffness, GroupMass, Joint, AddedMass, BoundarySpring, FrequencyDependentStiffness)}
+KINDS = tuple(_TYPES)
 
 
-def extension(model: Model, *, k_log=(), k_add=(), m_log=(), m_add=(), f_ref: float | None = None) -> Extension:
-    """Masks from element ids: ``k_log`` etc. list the element ids of each role."""
+def Effect(kind: str, pids=(), eids=(), nodes=(), values: dict | None = None, label: str = "") -> AbstractEffect:
+    """The effect of a kind by its JSON/CLI name, e.g. ``Effect("joint", nodes=(6001,),
+    values={"k_trans": 1e8, "k_rot": 4e4})``: the convenient constructor of the typed
+    classes (:class:`Joint` here). ``values``: SI, by the class' value names."""
+    if kind not in _TYPES:
+        raise ValueError(f"effect kind {kind!r} is not one of {KINDS}")
+    cls = _TYPES[kind]
+    names = {f.name for f in fields(cls)}
+    where = {k: v for k, v in (("pids", pids), ("eids", eids), ("nodes", nodes)) if len(v)}
+    wrong = sorted(set(where) - names) + sorted(set(values or {}) - set(cls.value_names))
+    if wrong:
+        raise ValueError(f"effect {kind}: {wrong} not among its locations and values "
+                         f"{sorted(names & {'pids', 'eids', 'nodes'})}, {list(cls.value_names)}")
+    return cls(**where, **(values or {}), label=label)
 
-    def masks(blocks, ids):
-        ids = np.asarray(list(ids), np.int64)
-        return tuple(jnp.asarray(np.isin(getattr(model, b).ids, ids), dtype=jnp.float64) for b in blocks)
 
-    return Extension(masks(_K_BLOCKS, k_log), masks(_K_BLOCKS, k_add), masks(_M_BLOCKS, m_log),
-                     masks(_M_BLOCKS, m_add), jnp.asarray(f_ref or 1.0), f_ref is not None)
-
-
-# ---------------------------------------------------------------------------------------
-# from the command line to an update
-
-
-def parse_effect(spec: str) -> Effect:
+def parse_effect(spec: str) -> AbstractEffect:
     """``KIND:TARGET`` as on the command line, e.g. ``joint:node=6001``,
     ``joint:node=3007;pids=21,22``, ``stiffness:pid=41``, ``mass:eids=201-205``,
     ``added_mass:node=2015``, ``boundary_spring:node=1``,
@@ -296,44 +436,11 @@ def parse_effect(spec: str) -> Effect:
     return Effect(kind, **where)
 
 
-def at_reference(model: Model, effect: Effect, f_test_hz) -> Effect:
-    """The effect with starting values for a fit: no change for group factors, a
-    slightly flexible joint or support (:func:`joint_reference`), 1 % of the total mass,
-    a support spring that alone would carry the structure at f₁/10, a = 0 at the
-    geometric mean of the test frequencies."""
-    kind = effect.kind
-    f = np.asarray(f_test_hz, float)
-    if kind in ("stiffness", "mass"):
-        values = {}
-    elif kind == "frequency_dependent_stiffness":
-        values = {"a": 0.0, "f_ref_hz": float(np.exp(np.mean(np.log(f))))}
-    elif kind == "added_mass":
-        values = {"m": 0.01 * total_mass(model)}
-    elif kind == "boundary_spring" and not any(constrained_components(model, n) for n in effect.nodes):
-        values = {"k": total_mass(model) * (2 * np.pi * float(np.min(f)) / 10) ** 2}
-    else:
-        dep = masters(model)
-        side = []
-        for n in effect.nodes:
-            at = elements_at(model, n)
-            side += [e for e, p in at.items() if n in dep or kind == "boundary_spring" or p in effect.pids[1:]]
-        if kind == "joint" and not all(n in dep for n in effect.nodes) and len(effect.pids) < 2:
-            raise ValueError(f"joint at grid(s) {list(effect.nodes)}: not RBE2-dependent; name the two "
-                             "groups, e.g. joint:node=3007;pids=21,22 (the second group is released)")
-        values = joint_reference(model, effect.nodes, side)
-    return Effect(kind, effect.pids, effect.eids, effect.nodes, values, effect.label)
+def at_reference(model: Model, effect: AbstractEffect, f_test_hz) -> AbstractEffect:
+    """``effect.at_reference(model, f_test_hz)``: the effect at its starting values."""
+    return effect.at_reference(model, f_test_hz)
 
 
-def effect_parameters(effect: Effect, before: Model, after: Model) -> tuple:
-    """Updating parameters of an effect added to ``before`` (giving ``after``)."""
-    name = f"{effect.kind}"
-    new = sorted(set(after.element_ids().tolist()) - set(before.element_ids().tolist()))
-    target = {"eids": tuple(effect.eids)} if effect.eids else {"pids": tuple(effect.pids)}
-    if effect.kind in ("stiffness", "mass"):
-        return (Parameter(name, effect.kind, **target),)
-    if effect.kind == "frequency_dependent_stiffness":
-        return (Parameter(name + "_E0", "stiffness", **target),
-                Parameter(name + "_a", "a", pids=tuple(effect.pids), bounds=(-0.5, 0.5)))
-    if effect.kind == "added_mass":
-        return (Parameter(name, "m", eids=tuple(new), bounds=(-1.0, 10.0)),)
-    return (Parameter(name, "k", eids=tuple(new), bounds=(-0.999, 1e3)),)
+def effect_parameters(effect: AbstractEffect, before: Model, after: Model) -> tuple[Parameter, ...]:
+    """``effect.parameters(before, after)``: its updating parameters."""
+    return effect.parameters(before, after)

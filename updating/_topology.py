@@ -1,0 +1,144 @@
+"""What the effects need to know of a model's topology: RBE2 masters, SPC'd components,
+elements at a grid, property groups and their halves, total mass, stiffness scales."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import jax.numpy as jnp
+import numpy as np
+
+from jaxfem import Model
+
+
+def _own(model: Model, row: int) -> set[int]:
+    node = model.node_ids[row]
+    return {int(c) for n, c in model.dofs.labels if n == node}
+
+
+def masters(model: Model) -> dict[int, int]:
+    """RBE2-dependent grid → the grid whose DoFs carry it (from the DoF map)."""
+    owner = np.asarray(model.dofs.labels[:, 0])
+    out = {}
+    for row, node in enumerate(model.node_ids):
+        idx = model.dofs.index[row]
+        idx = idx[idx < model.n_dof]
+        owners = set(owner[idx].tolist())
+        if idx.size and int(node) not in owners and len(owners) == 1:
+            out[int(node)] = owners.pop()
+    return out
+
+
+def constrained_components(model: Model, node: int) -> list[int]:
+    """Components of a grid removed by SPC (not by RBE2 nor auto-SPC)."""
+    row = int(model.node_index([node])[0])
+    if int(node) in masters(model):
+        return []
+    auto = {int(c) for n, c in model.dofs.auto_spc if n == node}
+    idx = model.dofs.index[row]
+    if np.any((idx < model.n_dof) & ~np.isin(model.dofs.labels[np.minimum(idx, model.n_dof - 1), 0], [node])):
+        return []
+    return [c for c in range(1, 7) if c not in _own(model, row) and c not in auto]
+
+
+def _structural(model: Model) -> Iterator[tuple[str, np.ndarray, np.ndarray, np.ndarray]]:
+    """(block name, element ids, pids, node rows) of beams, rods and bushes."""
+    for name in ("beams", "rods", "bushes"):
+        b = getattr(model, name)
+        if len(b.ids):
+            yield name, b.ids, b.pids, b.nodes
+
+
+def elements_at(model: Model, node: int) -> dict[int, int]:
+    """Structural element id → pid of the elements attached to a grid."""
+    row = int(model.node_index([node])[0])
+    out = {}
+    for _, ids, pids, nodes in _structural(model):
+        hit = np.any(nodes == row, axis=1)
+        out.update({int(e): int(p) for e, p in zip(ids[hit], pids[hit])})
+    return out
+
+
+def structural_pids(model: Model) -> list[int]:
+    """Property ids of beams and rods."""
+    return sorted({int(p) for b in (model.beams, model.rods) for p in b.pids})
+
+
+def stiffness_pids(model: Model) -> list[int]:
+    """Property ids of beams, rods, bushes and springs (pid 0, an added element, excluded)."""
+    return sorted({int(p) for b in (model.beams, model.rods, model.bushes, model.springs) for p in b.pids if p > 0})
+
+
+def halves(model: Model, pid: int) -> list[tuple[np.ndarray, str]]:
+    """A group split in two at the median of its longest extent (left/right, in/outboard)."""
+    rows, ids = [], []
+    for name in ("beams", "rods"):
+        b = getattr(model, name)
+        hit = b.pids == pid
+        rows.append(model.xyz[b.nodes[hit]].mean(axis=1))
+        ids.append(b.ids[hit])
+    centre, ids = np.concatenate(rows), np.concatenate(ids)
+    if len(ids) < 4:
+        return []
+    axis = int(np.argmax(np.ptp(centre, axis=0)))
+    cut = float(np.median(centre[:, axis]))
+    low = centre[:, axis] <= cut
+    if low.all() or not low.any():
+        return []
+    name = "xyz"[axis]
+    return [(ids[low], f"pid {pid}, {name} ≤ {cut:.3g} m"), (ids[~low], f"pid {pid}, {name} > {cut:.3g} m")]
+
+
+def property_groups(model: Model, pids: list[int], *, split: bool) -> list[tuple[int, tuple[int, ...], str]]:
+    """(pid, eids, label) of each property group (eids empty: the whole group) and, with
+    ``split``, of both :func:`halves` of the structural ones."""
+    structural = structural_pids(model)
+    out = []
+    for pid in pids:
+        out.append((pid, (), f"pid {pid}"))
+        if split and pid in structural:
+            out += [(pid, tuple(int(e) for e in ids), label) for ids, label in halves(model, pid)]
+    return out
+
+
+def total_mass(model: Model) -> float:
+    """Structural plus lumped mass (kg), with the current mass factors."""
+    b, sec, mat = model.beams, model.beam_sections, model.materials
+    xyz = model.xyz
+    total = 0.0
+    if len(b.ids):
+        length = np.linalg.norm(xyz[b.nodes[:, 1]] - xyz[b.nodes[:, 0]], axis=1)
+        s = b.section
+        total += float(jnp.sum((mat.rho[sec.material[s]] * sec.A[s] + sec.nsm[s]) * length * b.m_scale))
+    r, rs = model.rods, model.rod_sections
+    if len(r.ids):
+        length = np.linalg.norm(xyz[r.nodes[:, 1]] - xyz[r.nodes[:, 0]], axis=1)
+        s = r.section
+        total += float(jnp.sum((mat.rho[rs.material[s]] * rs.A[s] + rs.nsm[s]) * length * r.m_scale))
+    return total + float(jnp.sum(model.masses.m * model.masses.m_scale))
+
+
+def _beam_stiffness_scale(model: Model, eids) -> tuple[float, float]:
+    """(max E·A/L, max E·I/L) of beams and rods among ``eids`` (N/m, N·m/rad)."""
+    ea, ei = [0.0], [0.0]
+    for name, sec_name in (("beams", "beam_sections"), ("rods", "rod_sections")):
+        b, sec = getattr(model, name), getattr(model, sec_name)
+        hit = np.isin(b.ids, np.asarray(list(eids), np.int64))
+        if not hit.any():
+            continue
+        s = b.section[hit]
+        length = np.linalg.norm(model.xyz[b.nodes[hit, 1]] - model.xyz[b.nodes[hit, 0]], axis=1)
+        e = np.asarray(model.materials.E)[sec.material[s]]
+        ea.extend((e * np.asarray(sec.A)[s] / length).tolist())
+        inertia = np.maximum(np.asarray(sec.I1)[s], np.asarray(sec.I2)[s]) if name == "beams" else np.asarray(sec.J)[s]
+        ei.extend((e * inertia / length).tolist())
+    return max(ea), max(ei)
+
+
+def joint_reference(model: Model, nodes, side_eids) -> dict[str, float]:
+    """Starting values of a joint: rotations 10·E·I/L and translations 100·E·A/L of the
+    stiffest element of the released side (a joint slightly softer than rigid)."""
+    ea, ei = _beam_stiffness_scale(model, side_eids)
+    if ei <= 0:
+        raise ValueError(f"joint at grid(s) {list(nodes)}: no beam or rod on the released side")
+    return {"k_trans": 100.0 * ea, "k_rot": 10.0 * ei}
