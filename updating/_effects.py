@@ -233,7 +233,7 @@ class AbstractAddedElements(AbstractEffect):
 def _rigid_note(effect: Joint | BoundarySpring, reference: AbstractEffect | None) -> list[str]:
     k_rot, ref = effect.k_rot, getattr(reference, "k_rot", None)
     if k_rot is not None and ref is not None and k_rot > 1e3 * ref:
-        return ["joint stiffer than 100× its reference: effectively rigid"]
+        return ["joint stiffer than 1000× its reference: effectively rigid"]
     return []
 
 
