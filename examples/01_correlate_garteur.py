@@ -1,42 +1,39 @@
 """Correlate the GARTEUR SM-AG19 model (thesis §4.2) with measured modes.
 
-The model and its 24 sensors ship with jaxfem (``updating/data``). The "measured" modes
-are the case ``jaxfem demo`` writes to ``test.uff``: 14 elastic modes of a truth that
-differs from the model (fuselage stiffness +6 %, a flexible fin-root joint), with 0.2 %
-noise on frequencies and 1 % on shape components (``updating.simulate_test``). Shows:
+The files are those ``jaxfem demo`` writes (``updating.demo_case``): the nominal model
+``garteur.bdf`` and ``test.uff``, 14 elastic modes at 24 sensors "measured" on a truth
+that differs from the model (fuselage stiffness +6 %, a flexible fin-root joint), with
+0.2 % noise on frequencies and 1 % on shape components (``updating.simulate_test``). Shows:
 model modes, pairing by MAC and Δf (thesis eq. 4.1), the table f_test, f_model, Δf %,
 MAC and the sensors with the lowest COMAC. Next: ``02_update.py`` (make the model agree by updating parameters).
 """
 
-from importlib import resources
+import tempfile
+from pathlib import Path
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 import jaxfem
 import updating
-from identification import Sensors, observation_matrix
+from identification import observation_matrix, read_uff
 from jaxfem.io import read_bdf
 
 
-def measured(model, sensors, seed=2026):
-    """The demo's truth and measurement: 14 elastic modes (3 free-body and 3 suspension
-    modes skipped), σ = 1 % on shape components and 0.4 % on eigenvalues (Table 4.7)."""
-    truth = jaxfem.correct(model, [model.element_ids(pids=[1])], jnp.array([0.06]))
-    ref = updating.at_reference(model, updating.Effect("joint", nodes=(6001,)), [1.0]).values
-    truth = updating.Effect("joint", nodes=(6001,), values={**ref, "k_rot": ref["k_rot"] / 300}).apply(truth)
-    noise = updating.Noise(relative=0.01, frequency=0.004)
-    return updating.simulate_test(truth, sensors, 14, noise, jax.random.key(seed), skip=6)
+def case(directory=None):
+    """The files of ``jaxfem demo`` (``updating.demo_case``): the nominal model ``garteur.bdf``
+    and ``test.uff``, 14 elastic modes "measured" on a truth with the fuselage stiffness
+    +6 % and a flexible fin-root joint, σ = 1 % on shape components and 0.4 % on the
+    eigenvalues (Table 4.7). Read back as an engineer reads a model and a modal survey."""
+    model_path, test_path = updating.demo_case(Path(directory or tempfile.mkdtemp(prefix="jaxfem-demo-")))
+    return jaxfem.build_model(read_bdf(model_path)), read_uff(test_path)["modes"]
 
 
 def main() -> dict:
     jax.config.update("jax_enable_x64", True)
-    data = resources.files("updating") / "data"
-    with resources.as_file(data / "garteur.bdf") as bdf, resources.as_file(data / "garteur_sensors.csv") as csv:
-        model, sensors = jaxfem.build_model(read_bdf(bdf)), Sensors.read_csv(csv)
-    test = measured(model, sensors)
-    n = updating.n_model_modes(model, test.n_modes)  # 2 × test modes + 6
+    model, test = case()
+    sensors = test.sensors
+    n = updating.n_model_modes(model, test.n_modes)  # twice the test modes, at least 6 spare
     lam, phi = jaxfem.modes(model, n)
     f_a, phi_a = np.asarray(jaxfem.frequencies_hz(lam)), np.asarray(observation_matrix(model, sensors)[0] @ phi)
     pairing = updating.pair_modes(f_a, phi_a, test.frequencies_hz, test.shapes)

@@ -10,16 +10,12 @@ parameter here: what remains is for ``03_diagnose.py`` to find.
 """
 
 import importlib.util
-from importlib import resources
 from pathlib import Path
 
 import jax
 import numpy as np
 
-import jaxfem
 import updating
-from identification import Sensors
-from jaxfem.io import read_bdf
 
 PARAMETERS = updating.ParameterSet((
     updating.Parameter("fuselage", "stiffness", pids=(1,)),
@@ -32,11 +28,8 @@ PARAMETERS = updating.ParameterSet((
 def main() -> dict:
     jax.config.update("jax_enable_x64", True)
     spec = importlib.util.spec_from_file_location("correlate", Path(__file__).with_name("01_correlate_garteur.py"))
-    spec.loader.exec_module(correlate := importlib.util.module_from_spec(spec))  # its measured()
-    data = resources.files("updating") / "data"
-    with resources.as_file(data / "garteur.bdf") as bdf, resources.as_file(data / "garteur_sensors.csv") as csv:
-        model, sensors = jaxfem.build_model(read_bdf(bdf)), Sensors.read_csv(csv)
-    test = correlate.measured(model, sensors)
+    spec.loader.exec_module(correlate := importlib.util.module_from_spec(spec))  # its case()
+    model, test = correlate.case()
     res = updating.update(model, test, PARAMETERS)
     print(f"{'converged' if res.converged else 'NOT converged'} in {res.iterations} iterations, {res.seconds:.1f} s")
     for row in res.table():

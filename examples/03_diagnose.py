@@ -15,15 +15,11 @@ Next: add the effect and update again (``updating.add_effect``, ``jaxfem update
 """
 
 import importlib.util
-from importlib import resources
 from pathlib import Path
 
 import jax
 
-import jaxfem
 import updating
-from identification import Sensors
-from jaxfem.io import read_bdf
 
 PARAMETERS = updating.ParameterSet((updating.Parameter("fuselage", "stiffness", pids=(1,)),
                                     updating.Parameter("wings", "stiffness", pids=(11, 12, 13, 21, 22, 23))))
@@ -33,11 +29,8 @@ OPTIONS = updating.DiagnoseOptions(shortlist=3, per_kind=1, max_structural=1)
 def main() -> dict:
     jax.config.update("jax_enable_x64", True)
     spec = importlib.util.spec_from_file_location("correlate", Path(__file__).with_name("01_correlate_garteur.py"))
-    spec.loader.exec_module(correlate := importlib.util.module_from_spec(spec))  # its measured()
-    data = resources.files("updating") / "data"
-    with resources.as_file(data / "garteur.bdf") as bdf, resources.as_file(data / "garteur_sensors.csv") as csv:
-        model, sensors = jaxfem.build_model(read_bdf(bdf)), Sensors.read_csv(csv)
-    test = correlate.measured(model, sensors)
+    spec.loader.exec_module(correlate := importlib.util.module_from_spec(spec))  # its case()
+    model, test = correlate.case()
     diag = updating.diagnose(model, test, PARAMETERS, options=OPTIONS, progress=lambda s: print(f"[diagnose] {s}"))
     rep = diag.report
     b = rep["baseline"]

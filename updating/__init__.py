@@ -18,6 +18,7 @@ from ._sensitivity import identifiability as identifiability
 from ._sensitivity import parameter_std as parameter_std
 from ._sensitivity import sensitivities as sensitivities
 from ._sensitivity import test_run as test_run
+from ._demo import demo_case as demo_case
 from ._diagnose import Confirmation as Confirmation
 from ._diagnose import DiagnoseOptions as DiagnoseOptions
 from ._diagnose import Diagnosis as Diagnosis

@@ -77,9 +77,10 @@ def build_problem(model: Model, test: ModalData, parameters: ParameterSet,
 
 def n_model_modes(model: Model, n_test: int, requested: int | None = None) -> int:
     """Model modes computed for pairing with ``n_test`` test modes: ``requested``, else
-    2 n_test + 6 (room for crossing and spurious modes); at most the free DoFs."""
+    n_test + max(6, n_test): twice the test modes, at least six spare (room for rigid-body,
+    crossing and spurious modes); at most the free DoFs."""
     n_free = model.n_dof - len(model.dofs.massless)
-    return int(min(n_free, requested or 2 * n_test + 6))
+    return int(min(n_free, requested or n_test + max(6, n_test)))
 
 
 def _pairing(ev, test: ModalData, problem: Problem):

@@ -28,7 +28,7 @@ def correlate(
     json_out: JsonOut,
     plots: PlotsOut = None,
     n: Annotated[int | None, typer.Option("-n", "--n-modes",
-                                          help="model modes to compute (default 2 × test modes + 6, as n_model_modes)")] = None,
+                                          help="model modes to compute (default: twice the test modes, at least 6 spare; as n_model_modes)")] = None,
     min_mac: Annotated[float, typer.Option("--min-mac", help="pairing threshold on MAC")] = 0.65,
     max_freq_dev: Annotated[float, typer.Option("--max-freq-dev", help="pairing threshold on |Δf| (fraction)")] = 0.30,
 ) -> None:
