@@ -64,18 +64,24 @@ def load_model(path: Path):
     return model
 
 
-def load_test(path: Path):
-    """The measured modes of a universal file, as real normal modes."""
+def read_dataset(path: Path, key: str, what: str, dataset: int):
+    """``read_uff(path)[key]``; exit 2 naming the file when it cannot be read or holds no
+    such dataset."""
     from identification import read_uff
 
     with echoed_warnings():
         try:
-            modes = read_uff(path)["modes"]
+            data = read_uff(path)[key]
         except (ValueError, OSError) as err:
-            fail(f"cannot read test data {path}: {err}")
-    if modes is None:
-        fail(f"test data {path}: no mode shapes (UFF dataset 55) in the file")
-    return modes.real()
+            fail(f"cannot read {what} {path}: {err}")
+    if data is None:
+        fail(f"{path}: no {what} (UFF dataset {dataset}) in the file")
+    return data
+
+
+def load_test(path: Path):
+    """The measured modes of a universal file, as real normal modes."""
+    return read_dataset(path, "modes", "mode shapes", 55).real()
 
 
 def load_inputs(model_path: Path, test_path: Path, params_path: Path | None = None):
@@ -125,16 +131,9 @@ def print_pairing(p) -> None:
 def frf_prediction(path: Path, test, initial, updated, plots: Path | None) -> dict:
     """Measured FRFs against the initial and updated model's predictions (FRAC, dB;
     thesis §4.2.5.3), printed per pair; ``plots``: also ``frf.png`` of the first pair."""
-    from identification import read_uff
-
     from .._prediction import frf_correlation, predict_frf
 
-    try:
-        frf = read_uff(path)["frfs"]
-    except (ValueError, OSError) as err:
-        fail(f"cannot read FRFs {path}: {err}")
-    if frf is None:
-        fail(f"{path}: no FRFs (UFF dataset 58) in the file")
+    frf = read_dataset(path, "frfs", "FRFs", 58)
     ratios = np.asarray(test.damping_ratios)
     zeta = float(np.mean(ratios[ratios > 0])) if np.any(ratios > 0) else 0.01
     try:

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from ._common import check_plots, echoed_warnings, fail, write_json
+from ._common import check_plots, echoed_warnings, fail, read_dataset, write_json
 
 
 def identify(
@@ -23,16 +23,14 @@ def identify(
     """Modal parameters from FRFs: pLSCF stabilisation diagram, automatic selection of the
     stable poles, LSFD mode shapes, real normal modes (thesis §2.3.1)."""
     from identification import identify as run_identify
-    from identification import read_uff, write_uff
+    from identification import write_uff
 
     check_plots(plots)
+    frfs = read_dataset(frf_path, "frfs", "FRFs", 58)
     with echoed_warnings():
         try:
-            frfs = read_uff(frf_path)["frfs"]
-            if frfs is None:
-                fail(f"{frf_path}: no FRFs (UFF dataset 58) in the file")
             modes, report = run_identify(frfs, fmin=fmin, fmax=fmax, min_coherence=min_coherence)
-        except (ValueError, OSError) as err:
+        except ValueError as err:
             fail(f"{frf_path}: {err}")
     typer.echo(f"{'mode':>4} {'f [Hz]':>10} {'ζ [%]':>7} {'stable orders':>14} {'complexity':>11}")
     for i, m in enumerate(report["modes"], 1):
