@@ -43,7 +43,7 @@ from ._topology import constrained_components, elements_at
 @dataclass(eq=False)
 class Candidate:
     """An effect to try: its ``reference`` (θ = 0), its free parameters as masks for the
-    batched fit (``ext``, on its own ``model`` if it changes the structure), the θ grid
+    shared-structure fit (``ext``, on its own ``model`` if it changes the structure), the θ grid
     ``scan`` tried before fitting, its screening ρ, what the fit found (``result``) and the
     effect at the fitted values (``effect``; the reference until then)."""
 

@@ -4,7 +4,7 @@ Every effect is a final ``eqx.Module``: where it sits (property ids, element ids
 in the bulk data's own ids; static) and its physical values (SI; None until set). Each
 knows how to ``apply`` itself to a model (also ``model.with_effect(effect)``), its
 location in words (``where``), its starting values (``at_reference``), its free
-parameters for the updating engine (``parameters``) and, for batched fits, as traced masks
+parameters for the updating engine (``parameters``) and, for fits sharing one compiled solver, as traced masks
 (``extension``), its values at fitted log-factors θ (``updated``), whether they are
 plausible (``plausibility``) and, as a classmethod, the candidates of its kind that a
 model offers (``candidates``). The kinds, by their JSON/CLI names:
@@ -153,7 +153,7 @@ class FrequencyDependentStiffness(AbstractGroupEffect):
     (:class:`jaxfem.Viscoelastic`). Values: ``alpha`` (1), ``a`` (1), ``f_ref_hz`` (Hz).
 
     Free parameters θ = (ln(1 + α'), ln(1 + a')): a stiffness factor on E0 and the
-    additive change of the coefficient, ``a = a₀ + (e^θ₁ − 1)``, in the batched fits
+    additive change of the coefficient, ``a = a₀ + (e^θ₁ − 1)``, in the shared-structure fits
     (:class:`~updating._extension.Extension`) and in an update (parameter kind ``a``).
     """
 

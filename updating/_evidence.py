@@ -1,4 +1,4 @@
-"""Evidence for a candidate effect: batched fits with k-fold cross-validation over the test
+"""Evidence for a candidate effect: fits with k-fold cross-validation over the test
 modes, and the scores that rank them.
 
 Every fit is the engine's Levenberg–Marquardt loop (:mod:`updating._engine`); candidates

@@ -1,4 +1,4 @@
-"""An effect's free parameters as traced masks on a model, for batched fits.
+"""An effect's free parameters as traced masks on a model, for fits that share one compiled solver.
 
 Many candidate effects of one model structure share one compiled solver: what differs
 between them (which elements a factor scales, the law's reference frequency) is an
