@@ -49,9 +49,8 @@ class Dense(AbstractEigensolver):
         return evaluate(theta, problem), warm, jnp.asarray(True), jnp.asarray(False)
 
 
-def _paired(K, M, sol, problem: Problem, theta) -> Evaluation:
+def _paired(K, M, sol, problem: Problem) -> Evaluation:
     """Pair the solve's lowest ``n_model`` modes, then differentiate only the paired ones."""
-    del theta
     phi_s = problem.C @ sol.basis[:, : problem.n_model]
     lam = sol.lam[: problem.n_model]
     index, paired = pair(lam, phi_s, problem)
@@ -68,7 +67,7 @@ class Refined(AbstractEigensolver):
     def __call__(self, theta, problem, warm):
         K, M = jaxfem.assemble(problem.model(theta))
         sol = jaxfem.dense_modes(K, M, problem.n_model, shift=self.shift)
-        return _paired(K, M, sol, problem, theta), warm, jnp.asarray(True), jnp.asarray(False)
+        return _paired(K, M, sol, problem), warm, jnp.asarray(True), jnp.asarray(False)
 
 
 class Subspace(AbstractEigensolver):
@@ -92,4 +91,4 @@ class Subspace(AbstractEigensolver):
         sol = jax.lax.cond(anywhere,
                            lambda: solve(sol.basis, jaxfem.shifted_inverse(Ks, Ms, shift=self.shift)),
                            lambda: sol)
-        return _paired(K, M, sol, problem, theta), sol.basis, sol.converged, refreshed
+        return _paired(K, M, sol, problem), sol.basis, sol.converged, refreshed

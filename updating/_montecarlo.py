@@ -106,7 +106,7 @@ def _update_one(lam_e, phi_e, valid, problem: Problem, start: _Start, kind: _Kin
 def _measure(key, category, magnitude, lam0, phi0):
     """One sample's measured data: the Table 4.7 error of one category (index in
     ``CATEGORIES``) and magnitude on (λ0, φ0) (:func:`updating._simulation.perturb`)."""
-    noise = Noise(*(jnp.where(category == i, magnitude, 0.0) for i in range(len(CATEGORIES))))
+    noise = Noise(**{name: jnp.where(category == i, magnitude, 0.0) for i, name in enumerate(CATEGORIES)})
     return perturb(key, noise, lam0, phi0)
 
 
