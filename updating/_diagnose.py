@@ -52,11 +52,11 @@ from ._candidates import (
 from ._correlation import comac, pair_modes
 from ._effects import KINDS, AbstractEffect
 from ._engine import Settings
-from ._evidence import Fits, combine, evidence, fold_masks, rms_pct, run_fits, scan_start, verdict
+from ._evidence import Fits, combine, evidence, fold_masks, run_fits, scan_start, verdict
 from ._extension import extension
 from ._localisation import group_scores, reduction, residual_forces
 from ._parameters import Options, Parameter, ParameterSet
-from ._report import json_number
+from ._report import json_number, rms_pct
 from ._residuals import evaluate
 from ._result import Iteration, UpdateResult
 from ._solve import build_problem, update

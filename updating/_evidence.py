@@ -23,6 +23,7 @@ from ._effects import SCAN
 from ._eigensolvers import Dense
 from ._engine import Settings, run
 from ._extension import Extension
+from ._report import rms_pct
 from ._residuals import Problem, evaluate, rows
 
 
@@ -145,13 +146,6 @@ def evidence(short: list[Candidate], base: dict, n_b: int, n_rows: int, sigma2: 
     for rank, i in enumerate(order, 1):
         effects[i]["rank"] = rank
     return [effects[i] for i in order], [short[i] for i in order]
-
-
-def rms_pct(dev) -> float | None:
-    """RMS (%) of the finite relative deviations (None if there are none)."""
-    dev = np.asarray(dev, float)
-    dev = dev[np.isfinite(dev)]
-    return float(100 * np.sqrt(np.mean(dev**2))) if dev.size else None
 
 
 def verdict(report: dict) -> str:

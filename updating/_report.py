@@ -17,6 +17,13 @@ from pathlib import Path
 import numpy as np
 
 
+def rms_pct(dev) -> float | None:
+    """RMS (%) of the finite relative deviations (None if there are none)."""
+    dev = np.asarray(dev, float)
+    dev = dev[np.isfinite(dev)]
+    return float(100 * np.sqrt(np.mean(dev**2))) if dev.size else None
+
+
 def json_number(x) -> float | None:
     """A JSON number: NaN and ±inf become None (null)."""
     x = float(x)

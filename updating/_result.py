@@ -9,13 +9,7 @@ import numpy as np
 from jaxfem import Model
 
 from ._parameters import Parameterisation
-from ._report import json_number
-
-
-def _rms_pct(dev_pct: np.ndarray) -> float | None:
-    """RMS of the finite entries (None if there are none)."""
-    dev_pct = dev_pct[np.isfinite(dev_pct)]
-    return float(np.sqrt(np.mean(dev_pct**2))) if dev_pct.size else None
+from ._report import json_number, rms_pct
 
 
 @dataclass
@@ -41,8 +35,8 @@ class Iteration:
             "freq_dev_pct": [json_number(d) for d in dev],
             "mac": [json_number(m) for m in np.asarray(self.mac)],
             "cost": float(self.cost),
-            "rms_freq_dev_pct_active": _rms_pct(dev[~passive]),
-            "rms_freq_dev_pct_passive": _rms_pct(dev[passive]),
+            "rms_freq_dev_pct_active": rms_pct(dev[~passive] / 100),
+            "rms_freq_dev_pct_passive": rms_pct(dev[passive] / 100),
         }
 
 
