@@ -38,12 +38,15 @@ SOLVER_TOL = 1e-12  # Optimistix' Cauchy test (rtol = atol), the solver's own st
 
 class Settings(eqx.Module):
     """The loop's settings (static): solver, the α-change ``tolerance`` (§4.2.5.1),
-    ``max_iterations`` accepted steps, ``max_steps`` steps in all."""
+    ``max_iterations`` accepted steps, ``max_steps`` steps in all. With ``relative`` the
+    tolerance is on the relative change of each factor, |Δθ| = |Δ ln(1 + α)|: for
+    factors far from 1 (a softened joint, a woken added mass) a small Δα is no convergence."""
 
     gauss_newton: bool = eqx.field(static=True)
     tolerance: float = eqx.field(static=True)
     max_iterations: int = eqx.field(static=True)
     max_steps: int = eqx.field(static=True)
+    relative: bool = eqx.field(static=True, default=False)
 
     @classmethod
     def from_options(cls, options: Options, *, max_steps: int | None = None) -> Settings:
@@ -104,9 +107,9 @@ def _attach_jvp(primals, tangents):
     return eps, jac @ tangents[0]
 
 
-def _residual(theta, args, eigensolver: AbstractEigensolver):
-    """ε(θ) as one vector with its forward-mode Jacobian computed in the same pass."""
-    problem, warm = args
+def linearise(theta, problem: Problem, warm: Array, eigensolver: AbstractEigensolver):
+    """ε(θ) as one vector (eigenvalue, eigenvector, regularisation rows), its forward-mode
+    Jacobian computed in the same pass, and the eigensolver's auxiliary output."""
 
     def flat(t):
         ev, new_warm, solved, refreshed = eigensolver(t, problem, warm)
@@ -115,7 +118,12 @@ def _residual(theta, args, eigensolver: AbstractEigensolver):
 
     t = jax.lax.stop_gradient(theta)
     eps, lin, aux = jax.linearize(flat, t, has_aux=True)
-    jac = jax.vmap(lin, out_axes=1)(jnp.eye(t.shape[0], dtype=t.dtype))
+    return eps, jax.vmap(lin, out_axes=1)(jnp.eye(t.shape[0], dtype=t.dtype)), aux
+
+
+def _residual(theta, args, eigensolver: AbstractEigensolver):
+    """ε(θ) whose derivative is the Jacobian of :func:`linearise`."""
+    eps, jac, aux = linearise(theta, *args, eigensolver)
     return _attach(theta, eps, jac), aux
 
 
@@ -168,7 +176,7 @@ def run(theta0: Float[Array, " p"], problem: Problem, eigensolver: AbstractEigen
         cost = 0.5 * jnp.sum(opt.f_info.residual ** 2)
         first = s.steps == 0  # the first step evaluates the start and accepts it
         moved = jnp.any(new != s.theta)
-        change = jnp.max(jnp.abs(jnp.expm1(new) - jnp.expm1(s.theta)))
+        change = jnp.max(jnp.abs(new - s.theta) if settings.relative else jnp.abs(jnp.expm1(new) - jnp.expm1(s.theta)))
         accepted = s.accepted + moved.astype(jnp.int32)
         row = _row(new, cost, aux.ev, problem)
         slot = jnp.where(first, 0, accepted)
