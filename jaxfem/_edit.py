@@ -93,8 +93,9 @@ def reconnect(model: Model, eids: Sequence[int], old: int, new: int) -> Model:
 
 
 def add_bush(model: Model, node_a: int, node_b: int, k: Sequence[float], eid: int | None = None,
-             pid: int = 0) -> tuple[Model, int]:
-    """A CBUSH with stiffnesses ``k`` (k1..k6 in N/m and N·m/rad, basic axes) between two grids."""
+             pid: int = 0, s: float = 0.5) -> tuple[Model, int]:
+    """A CBUSH with stiffnesses ``k`` (k1..k6 in N/m and N·m/rad, basic axes) between two
+    grids, the spring at ``s`` of the way from A to B (CBUSH S)."""
     rows = model.node_index([node_a, node_b])
     b = model.bushes
     eid = _new_id(model.element_ids(), 1) if eid is None else int(eid)
@@ -103,7 +104,7 @@ def add_bush(model: Model, node_a: int, node_b: int, k: Sequence[float], eid: in
         nodes=np.concatenate([b.nodes, rows[None, :]]),
         axes=jnp.concatenate([b.axes, jnp.eye(3)[None]]),
         k=jnp.concatenate([b.k, jnp.asarray(k, dtype=jnp.float64).reshape(1, 6)]),
-        s=jnp.append(b.s, 0.5), k_scale=jnp.append(b.k_scale, 1.0),
+        s=jnp.append(b.s, s), k_scale=jnp.append(b.k_scale, 1.0),
     )
     return eqx.tree_at(lambda m: m.bushes, model, new), eid
 
