@@ -6,6 +6,7 @@ import abc
 from typing import ClassVar
 
 import equinox as eqx
+import numpy as np
 
 from jaxfem import Model
 
@@ -45,6 +46,8 @@ class AbstractEffect(eqx.Module):
     (classmethod ``candidates``). ``kind``: the JSON/CLI name. ``scales``: ``"k"`` or
     ``"m"``, the element scale its first free factor multiplies. ``scan``: log-factors θ
     tried from the reference before updating it (None: start at the reference).
+    ``prior_sd``: standard deviation of the weakly-informative normal prior on each free
+    log-factor θ, centred on the reference (θ = 0); the diagnosis' evidence uses it.
     """
 
     label: eqx.AbstractVar[str]
@@ -52,6 +55,7 @@ class AbstractEffect(eqx.Module):
     value_names: ClassVar[tuple[str, ...]]
     scales: ClassVar[str]
     scan: ClassVar[tuple | None]
+    prior_sd: ClassVar[tuple[float, ...]]
 
     @abc.abstractmethod
     def apply(self, model: Model) -> Model:
@@ -80,6 +84,11 @@ class AbstractEffect(eqx.Module):
         ``reference`` the effect at its starting values."""
         return []
 
+    @abc.abstractmethod
+    def advice(self, sd) -> str:
+        """What to add to the model, in words, at these values; ``sd``: the standard
+        deviation of each free log-factor θ (from the evidence's Laplace approximation)."""
+
     @property
     def values(self) -> dict[str, float]:
         """The physical values that are set, by name."""
@@ -107,3 +116,13 @@ class AbstractEffect(eqx.Module):
             raise ValueError(f"{self.kind} at {self.where()}: value {name!r} is not set "
                              "(at_reference gives starting values)")
         return v
+
+
+def spread(value: float, sd: float, unit: str) -> str:
+    """``value unit (±…)`` for a quantity known to a log-factor standard deviation ``sd``:
+    ± in the unit up to sd = 0.3, else "within a factor" e^sd."""
+    if not np.isfinite(sd):
+        return f"{value:.3g} {unit} (not determined by the data)"
+    if sd <= 0.3:
+        return f"{value:.3g} {unit} (±{abs(value) * sd:.2g} {unit})"
+    return f"{value:.3g} {unit} (within a factor {np.exp(sd):.2g})"

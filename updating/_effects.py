@@ -33,7 +33,7 @@ import jaxfem
 from jaxfem import Model
 from jaxfem import _edit as edit
 
-from ._abstract_effect import AbstractEffect, ids_field, label_field, value_field
+from ._abstract_effect import AbstractEffect, ids_field, label_field, spread, value_field
 from ._extension import K_BLOCKS, Extension, extension
 from ._parameters import Parameter
 from ._topology import (
@@ -48,9 +48,7 @@ from ._topology import (
 )
 
 SCAN = (0.0, -1.5, -3.0, -4.5, -6.0, 1.5)  # log-factors tried before fitting a joint, support or mass
-SCAN_ADDED = (-3.0, -2.0, -1.0, 0.0, 1.0, 2.0, 3.0)  # ... a dormant added mass or spring (× its reference)
-SCAN_LAW = tuple((np.log1p(alpha), np.log1p(a)) for alpha in (-0.2, 0.0, 0.2)
-                 for a in (-0.4, -0.2, 0.0, 0.2, 0.4))  # (E0 factor, a − a₀) of a frequency law
+SCAN_LAW = tuple((0.0, np.log1p(a)) for a in (-0.3, 0.0, 0.15, 0.3, 0.8, 1.5))  # (E0 factor, a − a₀) of a frequency law
 
 
 # ---------------------------------------------------------------------------------------
@@ -106,6 +104,12 @@ class AbstractGroupEffect(AbstractEffect):
         f = self._factor()
         return [] if -0.5 <= f <= 1.0 else [f"factor {f:+.2f} outside [-0.5, 1.0]"]
 
+    def advice(self, sd) -> str:
+        what = {"k": "stiffness", "m": "mass"}[self.scales]
+        f, s = self._factor(), float(np.atleast_1d(sd)[0])
+        unc = f"±{100 * (1 + f) * s:.1f} %" if np.isfinite(s) else "not determined by the data"
+        return f"change the {what} of {self.where()} by {100 * f:+.1f} % ({unc})"
+
 
 class GroupStiffness(AbstractGroupEffect):
     """Stiffness factor α of a group, ``K = K₀ + α K_g`` (eq. 3.1). Values: ``alpha`` (1)."""
@@ -120,6 +124,7 @@ class GroupStiffness(AbstractGroupEffect):
     factor_name = "alpha"
     scales = "k"
     scan = None
+    prior_sd = (0.3,)
 
     @classmethod
     def candidates(cls, model: Model) -> list[GroupStiffness]:
@@ -140,6 +145,7 @@ class GroupMass(AbstractGroupEffect):
     factor_name = "beta"
     scales = "m"
     scan = None
+    prior_sd = (0.2,)
 
     @classmethod
     def candidates(cls, model: Model) -> list[GroupMass]:
@@ -169,6 +175,7 @@ class FrequencyDependentStiffness(AbstractGroupEffect):
     factor_name = "alpha"
     scales = "k"
     scan = SCAN_LAW
+    prior_sd = (0.3, 0.7)  # a = e^θ₁ − 1 within (−0.75, 3) at 2σ: visco-elastic moduli may rise steeply
 
     def __check_init__(self):
         if not self.pids:
@@ -202,27 +209,56 @@ class FrequencyDependentStiffness(AbstractGroupEffect):
     def plausibility(self, total_mass: float, reference: AbstractEffect | None = None) -> list[str]:
         return super().plausibility(total_mass) + ([f"a = {self.a:.2f} beyond ±0.5"] if abs(self.a) > 0.5 else [])
 
+    def advice(self, sd) -> str:
+        s = np.broadcast_to(np.asarray(sd, float), (2,))
+        a_sd = f"±{(1 + self.a) * s[1]:.2g}" if np.isfinite(s[1]) else "not determined by the data"
+        return (f"give {self.where()} a frequency-dependent stiffness E(f) = E0·(1 {self.alpha:+.3f})·"
+                f"(1 + a·ln(f / {self.f_ref_hz:.3g} Hz)) with a = {self.a:.3f} ({a_sd})")
+
 
 # ---------------------------------------------------------------------------------------
 # effects that add elements: springs, bushes, masses
 
 
 class AbstractAddedElements(AbstractEffect):
-    """An effect that adds elements to the model; its one free factor scales all of its
-    values (the new elements' ``k`` or ``m``)."""
+    """An effect that adds elements to the model. One free factor scales all of its
+    values (the new elements' ``k`` or ``m``); a joint or a released support has two,
+    on its translational and on its rotational stiffness (θ₀ on ``k_trans``, θ₁ on ``k_rot``)."""
+
+    @property
+    def split(self) -> bool:
+        """Two free factors: translations and rotations."""
+        return getattr(self, "k_rot", None) is not None
 
     def _new(self, before: Model, after: Model) -> tuple[int, ...]:
         return tuple(sorted(set(after.element_ids().tolist()) - set(before.element_ids().tolist())))
 
+    def _halves(self, before: Model, after: Model) -> tuple[tuple[int, ...], tuple[int, ...]]:
+        """The new elements acting on translations and those acting on rotations."""
+        new = np.asarray(self._new(before, after), np.int64)
+        b, s = after.bushes, after.springs
+        rot = np.concatenate([b.ids[np.isin(b.ids, new) & np.all(np.asarray(b.k)[:, :3] == 0, axis=1)],
+                              s.ids[np.isin(s.ids, new) & (s.components[:, 0] > 3)]])
+        return tuple(int(e) for e in new if e not in rot), tuple(int(e) for e in sorted(rot))
+
     def parameters(self, before: Model, after: Model) -> tuple[Parameter, ...]:
+        if self.split:
+            trans, rot = self._halves(before, after)
+            return (Parameter(self.kind + "_trans", "k", eids=trans, bounds=(-0.999, 1e3)),
+                    Parameter(self.kind + "_rot", "k", eids=rot, bounds=(-0.999, 1e3)))
         bounds = (-0.999, 1e3) if self.scales == "k" else (-1.0, 10.0)
         return (Parameter(self.kind, self.scales, eids=self._new(before, after), bounds=bounds),)
 
     def extension(self, model: Model, extended: Model) -> Extension:
+        if self.split:
+            trans, rot = self._halves(model, extended)
+            return extension(extended, k_log=trans, k_log_2=rot)
         return extension(extended, **{f"{self.scales}_log": self._new(model, extended)})
 
     def updated(self, theta) -> AbstractAddedElements:
         t = np.asarray(theta, float)
+        if self.split:
+            return replace(self, k_trans=float(self.k_trans * np.exp(t[0])), k_rot=float(self.k_rot * np.exp(t[1])))
         return replace(self, **{name: float(v * np.exp(t[0])) for name, v in self.values.items()})
 
     def _check_nodes(self):
@@ -238,8 +274,9 @@ def _rigid_note(effect: Joint | BoundarySpring, reference: AbstractEffect | None
 
 
 class Joint(AbstractAddedElements):
-    """A rigid connection made flexible: a 6-DoF spring (CBUSH). At an RBE2-dependent grid
-    the grid is released and held to its master; at a grid shared by two property groups
+    """A rigid connection made flexible: 6-DoF springs (two CBUSHes, translations and
+    rotations) located at the released grid. At an RBE2-dependent grid the grid is
+    released and held to its master; at a grid shared by two property groups
     (``pids``: the first keeps the grid, the others are moved to a new coincident one).
     Values: ``k_trans`` (N/m) on translations, ``k_rot`` (N·m/rad) on rotations."""
 
@@ -252,7 +289,8 @@ class Joint(AbstractAddedElements):
     kind = "joint"
     value_names = ("k_trans", "k_rot")
     scales = "k"
-    scan = SCAN
+    scan = tuple((t, t) for t in SCAN)
+    prior_sd = (3.0, 3.0)  # stiffness spans decades: e^±6 ≈ ×/÷ 400 at 2σ
 
     def __check_init__(self):
         self._check_nodes()
@@ -280,7 +318,7 @@ class Joint(AbstractAddedElements):
         return out
 
     def apply(self, model: Model) -> Model:
-        k6 = [self._need("k_trans")] * 3 + [self._need("k_rot")] * 3
+        kt, kr = [self._need("k_trans")] * 3, [self._need("k_rot")] * 3
         dep = masters(model)
         for node in self.nodes:
             master = dep.get(node)
@@ -288,10 +326,13 @@ class Joint(AbstractAddedElements):
                 model, new = edit.add_grid(model, model.xyz[model.node_index([node])[0]])
                 side = model.element_ids(pids=self.pids[1:])
                 model = edit.reconnect(model, side.tolist(), node, new)
-                model = edit.add_bush(model, node, new, k6)[0]
-            else:  # an RBE2-dependent grid becomes independent, held by a spring
+                a, b = node, new
+            else:  # an RBE2-dependent grid becomes independent, held by springs
                 model = edit.release(model, node)
-                model = edit.add_bush(model, master, node, k6)[0]
+                a, b = master, node
+            # translations and rotations: two bushes, two factors; the springs at the released grid
+            model = edit.add_bush(model, a, b, kt + [0.0] * 3, s=1.0)[0]
+            model = edit.add_bush(model, a, b, [0.0] * 3 + kr, s=1.0)[0]
         return edit.refresh(model)
 
     def at_reference(self, model: Model, f_test_hz) -> Joint:
@@ -305,6 +346,11 @@ class Joint(AbstractAddedElements):
 
     def plausibility(self, total_mass: float, reference: AbstractEffect | None = None) -> list[str]:
         return _rigid_note(self, reference)
+
+    def advice(self, sd) -> str:
+        s = np.broadcast_to(np.asarray(sd, float), (2,))
+        return (f"make the {self.where()} a flexible joint: k_rot = {spread(self.k_rot, s[1], 'N·m/rad')}, "
+                f"k_trans = {spread(self.k_trans, s[0], 'N/m')}")
 
 
 class BoundarySpring(AbstractAddedElements):
@@ -320,7 +366,15 @@ class BoundarySpring(AbstractAddedElements):
     kind = "boundary_spring"
     value_names = ("k", "k_trans", "k_rot")
     scales = "k"
-    scan = SCAN
+
+    @property
+    def scan(self) -> tuple:
+        """On a free grid one factor; a released support's two factors scanned together."""
+        return tuple((t, t) for t in SCAN) if self.split else SCAN
+
+    @property
+    def prior_sd(self) -> tuple[float, ...]:
+        return (3.0, 3.0) if self.split else (3.0,)
 
     def __check_init__(self):
         self._check_nodes()
@@ -354,6 +408,14 @@ class BoundarySpring(AbstractAddedElements):
     def plausibility(self, total_mass: float, reference: AbstractEffect | None = None) -> list[str]:
         return _rigid_note(self, reference)
 
+    def advice(self, sd) -> str:
+        s = np.broadcast_to(np.asarray(sd, float), (2,)) if self.split else np.full(2, np.atleast_1d(sd)[0])
+        grids = ", ".join(map(str, self.nodes))
+        if not self.split:
+            return f"add springs to ground of {spread(self.k, s[0], 'N/m')} on the translations of grid {grids}"
+        return (f"make the support at grid {grids} flexible: k_trans = {spread(self.k_trans, s[0], 'N/m')}, "
+                f"k_rot = {spread(self.k_rot, s[1], 'N·m/rad')}")
+
 
 class AddedMass(AbstractAddedElements):
     """A point mass at a grid (CONM2). Values: ``m`` (kg)."""
@@ -366,6 +428,7 @@ class AddedMass(AbstractAddedElements):
     value_names = ("m",)
     scales = "m"
     scan = SCAN
+    prior_sd = (1.5,)  # about the reference 1 % of the total mass: 0.05 % to 20 % at 2σ
 
     def __check_init__(self):
         self._check_nodes()
@@ -383,6 +446,9 @@ class AddedMass(AbstractAddedElements):
         if self.m > 0.2 * total_mass:
             return [f"added mass {self.m:.3g} kg is {100 * self.m / total_mass:.0f} % of the total"]
         return []
+
+    def advice(self, sd) -> str:
+        return f"add {spread(self.m, float(np.atleast_1d(sd)[0]), 'kg')} at grid {', '.join(map(str, self.nodes))}"
 
 
 # ---------------------------------------------------------------------------------------

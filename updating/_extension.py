@@ -27,7 +27,8 @@ class Extension(eqx.Module):
     for mass), so θ₀ is a log-factor on a group (``k_log``) or wakes dormant elements
     (``k_add``: added springs or masses present with scale 0). With ``visco`` set, θ₁
     gives the law ``a = a₀ + (e^θ₁ − 1)`` on the ``k_log`` group (reference ``f_ref``),
-    the parameterisation of :class:`~updating.FrequencyDependentStiffness`.
+    the parameterisation of :class:`~updating.FrequencyDependentStiffness`; with
+    ``split`` set, θ₁ is a second log-factor, on ``k_log_2`` (a joint's rotations).
     """
 
     k_log: tuple[Float[Array, " n"], ...]
@@ -36,19 +37,22 @@ class Extension(eqx.Module):
     m_add: tuple[Float[Array, " n"], ...]
     f_ref: Float[Array, ""]
     a0: Float[Array, ""]
+    k_log_2: tuple[Float[Array, " n"], ...]
     visco: bool = eqx.field(static=True)
+    split: bool = eqx.field(static=True)
 
     @property
     def n_params(self) -> int:
-        return 2 if self.visco else 1
+        return 2 if self.visco or self.split else 1
 
     def __call__(self, model: Model, theta: Float[Array, " e"]) -> Model:
         theta = jnp.clip(theta, -_THETA_MAX, _THETA_MAX)  # a wild trial step stays finite
         s = jnp.exp(theta[0])
-        for name, log, add in zip(K_BLOCKS, self.k_log, self.k_add):
+        second = theta[-1] if self.split else 0.0
+        for name, log, log2, add in zip(K_BLOCKS, self.k_log, self.k_log_2, self.k_add):
             blk = getattr(model, name)
             model = eqx.tree_at(lambda m, name=name: getattr(m, name).k_scale, model,
-                                blk.k_scale * jnp.exp(theta[0] * log) + add * s)
+                                blk.k_scale * jnp.exp(theta[0] * log + second * log2) + add * s)
         for name, log, add in zip(M_BLOCKS, self.m_log, self.m_add):
             blk = getattr(model, name)
             model = eqx.tree_at(lambda m, name=name: getattr(m, name).m_scale, model,
@@ -61,14 +65,17 @@ class Extension(eqx.Module):
 
 
 def extension(model: Model, *, k_log=(), k_add=(), m_log=(), m_add=(), f_ref: float | None = None,
-              a0: float = 0.0) -> Extension:
+              a0: float = 0.0, k_log_2=()) -> Extension:
     """Masks from element ids: ``k_log`` etc. list the element ids of each role; a law
-    (``visco``) when ``f_ref`` (Hz) is given, its coefficient starting at ``a0``."""
+    (``visco``) when ``f_ref`` (Hz) is given, its coefficient starting at ``a0``; a second
+    log-factor (``split``) when ``k_log_2`` lists elements."""
 
     def masks(blocks, ids):
         ids = np.asarray(list(ids), np.int64)
         return tuple(jnp.asarray(np.isin(getattr(model, b).ids, ids), dtype=jnp.float64) for b in blocks)
 
+    if f_ref is not None and len(k_log_2):
+        raise ValueError("an extension has a frequency law or a second factor, not both")
     return Extension(masks(K_BLOCKS, k_log), masks(K_BLOCKS, k_add), masks(M_BLOCKS, m_log),
                      masks(M_BLOCKS, m_add), jnp.asarray(f_ref or 1.0), jnp.asarray(float(a0)),
-                     f_ref is not None)
+                     masks(K_BLOCKS, k_log_2), f_ref is not None, len(k_log_2) > 0)

@@ -89,6 +89,13 @@ def halves(model: Model, pid: int) -> list[tuple[np.ndarray, str]]:
     return [(ids[low], f"pid {pid}, {name} ≤ {cut:.3g} m"), (ids[~low], f"pid {pid}, {name} > {cut:.3g} m")]
 
 
+def element_grids(model: Model, eids) -> list[int]:
+    """Grids of the structural elements ``eids`` (beams, rods, bushes), in id order."""
+    eids = np.asarray(list(eids), np.int64)
+    rows = [nodes[np.isin(ids, eids)].ravel() for _, ids, _, nodes in _structural(model)]
+    return sorted({int(model.node_ids[r]) for r in np.concatenate(rows)}) if rows else []
+
+
 def property_groups(model: Model, pids: list[int], *, split: bool) -> list[tuple[int, tuple[int, ...], str]]:
     """(pid, eids, label) of each property group (eids empty: the whole group) and, with
     ``split``, of both :func:`halves` of the structural ones."""
