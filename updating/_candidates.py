@@ -3,10 +3,12 @@
 baseline (Friswell & Mottershead 1995, §7; :func:`~updating._localisation.reduction`),
 shortlisted for a full fit.
 
-Group factors and node effects (added masses, springs to ground) share one model: the
-nominal one plus dormant elements (scale 0) at the localised grids, so that their fits
-share one compiled solver. Joints and released supports change the model's structure:
-each gets its own model at its reference values.
+All candidates share one model, so that their fits share one compiled solver: the
+nominal one plus dormant elements (scale 0) at every grid of the localised region (added
+masses, springs to ground), and its rigid connections and supports in that region
+released and held by springs :data:`STIFF` times stiffer than their reference — as
+rigid as the original to well below measurement noise (GARTEUR, all ten joints:
+frequencies within 1e-4) — which the fit then softens.
 """
 
 from __future__ import annotations
@@ -24,7 +26,6 @@ from jaxfem import _edit as edit
 
 from ._compiled import Compiled
 from ._effects import (
-    SCAN_ADDED,
     AbstractEffect,
     AddedMass,
     BoundarySpring,
@@ -37,7 +38,7 @@ from ._extension import Extension, extension
 from ._localisation import reduction
 from ._parameters import Parameter, Parameterisation
 from ._residuals import Problem, residuals
-from ._topology import constrained_components, elements_at
+from ._topology import constrained_components, element_grids, elements_at, masters
 
 
 @dataclass(eq=False)
@@ -49,10 +50,10 @@ class Candidate:
 
     reference: AbstractEffect
     ext: Extension
-    model: Model | None = None
     scan: tuple | None = None
     screen: float = float("nan")
     theta0: np.ndarray | None = None
+    prior_mean: float | np.ndarray = 0.0
     result: dict = field(default_factory=dict)
     effect: AbstractEffect | None = None
 
@@ -64,9 +65,14 @@ class Candidate:
 
     @property
     def family(self) -> str:
-        """``structural`` (own model), ``visco`` (a law) or ``mask``: the candidates of one
-        family share a compiled fit."""
-        return "structural" if self.model is not None else "visco" if self.ext.visco else "mask"
+        """``visco`` (a law) or ``mask``: the candidates of one family share a compiled fit."""
+        return "visco" if self.ext.visco else "mask"
+
+    def prior(self) -> tuple[np.ndarray, np.ndarray]:
+        """Mean and σ of the normal prior on each free θ (the kind's ``prior_sd`` about
+        its reference; a stiffened joint's reference lies ``prior_mean`` below its θ = 0)."""
+        sd = np.asarray(self.reference.prior_sd, float)
+        return np.zeros(len(sd)) + self.prior_mean, sd
 
 
 # ---------------------------------------------------------------------------------------
@@ -90,15 +96,29 @@ class Screen:
     f_ref: float
 
     @classmethod
-    def at(cls, problem: Problem, theta, n_b: int, f_e: np.ndarray) -> Screen:
+    def at(cls, problem: Problem, theta, model: Model, params: tuple[Parameter, ...], f_e: np.ndarray) -> Screen:
+        """At θ of ``problem`` (whose first parameters are ``params`` of ``model``)."""
         r, J_k, J_m, k_ids, m_ids = _element_jacobian(problem, np.asarray(theta))
-        return cls(r, J_k, J_m, k_ids, m_ids, _baseline_columns(problem, theta, n_b), _row_modes(problem),
-                   f_e, float(np.exp(np.mean(np.log(f_e)))))
+        screen = cls(r, J_k, J_m, k_ids, m_ids, np.zeros((len(r), 0)), _row_modes(problem),
+                     f_e, float(np.exp(np.mean(np.log(f_e)))))
+        if all(p.kind in ("stiffness", "mass") and not p.nodes for p in params):
+            # a log-factor on a group is the sum of its elements' scales (d(k e^θ)/dθ = k)
+            cols = [screen.column({"stiffness": "k", "mass": "m"}[p.kind], _param_eids(model, p)) for p in params]
+            screen.J_b = np.concatenate(cols, axis=1) if cols else screen.J_b
+        else:
+            screen.J_b = _baseline_columns(problem, theta, len(params))
+        return screen
 
     def column(self, scales: str, eids) -> np.ndarray:
         """One column: the stiffness (``scales`` "k") or mass ("m") of ``eids`` scaled together."""
         J, ids = (self.J_k, self.k_ids) if scales == "k" else (self.J_m, self.m_ids)
         return J[:, np.isin(ids, np.asarray(list(eids), np.int64))].sum(axis=1, keepdims=True)
+
+    def step(self, columns: np.ndarray) -> np.ndarray:
+        """The linearised (Gauss–Newton) step of ``columns``' amplitudes, the baseline
+        parameters fitted with them."""
+        a = np.concatenate([self.J_b, columns], axis=1)
+        return np.linalg.lstsq(a, -self.r, rcond=1e-10)[0][self.J_b.shape[1]:]
 
     def law_columns(self, g: np.ndarray) -> np.ndarray:
         """A stiffness column and its frequency law: ``g`` and ``g·ln(f/f_ref)``."""
@@ -161,17 +181,53 @@ def _element_jacobian(problem: Problem, theta):
 # candidates by kind
 
 
-def localised_grids(model: Model, node_scores: dict[int, float], n: int) -> list[int]:
-    """Grids with the highest localisation score that carry structural elements (and no SPC)."""
-    ranked = sorted(node_scores, key=lambda k: -node_scores[k])
-    return [k for k in ranked if elements_at(model, k) and not constrained_components(model, k)][:n]
+STIFF = 100.0  # a released rigid connection or support is held this many times stiffer than its reference
 
 
-def augment(model: Model, nodes: list[int], f_e) -> tuple[Model, list[tuple[AbstractEffect, list[int]]]]:
-    """The model plus a dormant (scale 0) point mass and ground springs at each grid, at the
-    reference values of :class:`AddedMass` and :class:`BoundarySpring`; returns the model
-    and (reference effect, its dormant element ids) per grid and kind."""
-    dormant, nominal = [], model
+def localised_grids(model: Model, screen: Screen, node_scores: dict[int, float], n: int,
+                    fraction: float) -> list[int]:
+    """The localised region: the grids of the property groups (or halves) whose stiffness
+    or mass screens at least ``fraction`` of the best (at most three), then the grids
+    scoring at least ``fraction`` of the best; those that carry structural elements and no
+    SPC, at most ``n``. (Grid scores alone favour grids that move much, such as tips.)"""
+    groups = []
+    for kind in (GroupStiffness, GroupMass):
+        for effect in kind.candidates(model):
+            ids = effect.elements(model)
+            groups.append((float(reduction(screen.r, screen.column(effect.scales, ids), screen.J_b, joint=True)), ids))
+    top_group = max((g[0] for g in groups), default=0.0)
+    grids = [g for rho, ids in sorted(groups, key=lambda g: -g[0])[:3] if rho >= fraction * top_group
+             for g in element_grids(model, ids)]
+    top = max(node_scores.values(), default=0.0)
+    grids += sorted((k for k in node_scores if node_scores[k] >= fraction * top), key=lambda k: -node_scores[k])
+    return [k for k in dict.fromkeys(grids) if elements_at(model, k) and not constrained_components(model, k)][:n]
+
+
+def region_structures(model: Model, region: list[int], node_score: dict, kinds, n: int) -> list[AbstractEffect]:
+    """Joints (RBE2 groups, grids shared by two groups) and supports with a grid in the
+    localised ``region`` or scoring high there, best first, at most ``n``."""
+    effects = [e for kind in (Joint, BoundarySpring) if kind.kind in kinds for e in kind.candidates(model)]
+    inside, dep = set(region), masters(model)
+    score = {e: (any(k in inside or dep.get(k) in inside for k in e.nodes), max(node_score.get(k, 0.0) for k in e.nodes))
+             for e in effects}
+    return sorted((e for e in effects if score[e][0] or score[e][1] > 0),
+                  key=lambda e: (not score[e][0], -score[e][1]))[:n]
+
+
+def augment(model: Model, nodes: list[int], structures: list[AbstractEffect], f_e):
+    """The model plus a dormant (scale 0) point mass and ground springs at each grid of
+    ``nodes``, at the reference values of :class:`AddedMass` and :class:`BoundarySpring`,
+    and each joint or support of ``structures`` released and held :data:`STIFF` times
+    stiffer than its reference. Returns the model, (reference effect, dormant element ids)
+    per grid and kind, and (stiffened effect, its element ids) per structure."""
+    nominal = model
+    stiffened = []
+    for effect in structures:
+        ref = effect.at_reference(nominal, f_e)
+        stiff = ref.updated(np.full(len(ref.prior_sd), np.log(STIFF)))
+        before, model = model, stiff.apply(model)
+        stiffened.append((stiff, stiff._halves(before, model) if stiff.split else (stiff._new(before, model), ())))
+    dormant = []
     for node in nodes:
         mass = AddedMass(nodes=(node,)).at_reference(nominal, f_e)
         spring = BoundarySpring(nodes=(node,)).at_reference(nominal, f_e)
@@ -183,7 +239,7 @@ def augment(model: Model, nodes: list[int], f_e) -> tuple[Model, list[tuple[Abst
     model = eqx.tree_at(lambda m: (m.masses.m_scale, m.springs.k_scale), model, (
         jnp.where(jnp.asarray(np.isin(c.ids, asleep["m"])), 0.0, c.m_scale),
         jnp.where(jnp.asarray(np.isin(s.ids, asleep["k"])), 0.0, s.k_scale)))
-    return model, dormant
+    return model, dormant, stiffened
 
 
 def group_candidates(model: Model, aug: Model, params: tuple[Parameter, ...], screen: Screen) -> list[Candidate]:
@@ -197,43 +253,52 @@ def group_candidates(model: Model, aug: Model, params: tuple[Parameter, ...], sc
             if (effect.kind, tuple(sorted(ids.tolist()))) in taken:
                 continue  # already a baseline parameter
             ref = effect.at_reference(model, screen.f_e)
-            c = Candidate(ref, ref.extension(model, aug), scan=ref.scan)
+            c = Candidate(ref, ref.extension(model, aug))
             g = screen.column(ref.scales, ids)
-            c.screen = float(reduction(screen.r, screen.law_columns(g) if c.ext.visco else g, screen.J_b, joint=True))
+            cols = screen.law_columns(g) if c.ext.visco else g
+            c.screen = float(reduction(screen.r, cols, screen.J_b, joint=True))
+            if c.ext.visco:  # start at the linearised step (E0 factor 1 + u, law coefficient a) or on a grid
+                u, a = screen.step(cols)
+                c.scan = (tuple(np.log1p([np.clip(u, -0.5, 1.0), np.clip(a, -0.7, 1.7)])),) + ref.scan
             out.append(c)
     return out
 
 
 def node_candidates(aug: Model, dormant, screen: Screen) -> list[Candidate]:
-    """Added mass and ground spring at each localised grid (the dormant elements of ``aug``)."""
+    """Added mass and ground spring at each localised grid (the dormant elements of ``aug``),
+    to start at the linearised step's amplitude (× the reference, within e^±3) or at e^-3."""
     out = []
     for ref, ids in dormant:
-        c = Candidate(ref, extension(aug, **{f"{ref.scales}_add": ids}), scan=SCAN_ADDED)
-        c.screen = float(reduction(screen.r, screen.column(ref.scales, ids), screen.J_b)[0])
+        g = screen.column(ref.scales, ids)
+        step = float(np.log(np.clip(screen.step(g)[0], np.exp(-3.0), np.exp(3.0))))
+        c = Candidate(ref, extension(aug, **{f"{ref.scales}_add": ids}), scan=(step, -3.0))
+        c.screen = float(reduction(screen.r, g, screen.J_b)[0])
         out.append(c)
     return out
 
 
-def structural_candidates(model: Model, node_score: dict, kinds, n: int, f_e) -> list[Candidate]:
-    """Joints and flexible supports, the ``n`` nearest the localised error, each on its own
-    model at its reference values."""
-    effects = [e for kind in (Joint, BoundarySpring) if kind.kind in kinds for e in kind.candidates(model)]
-    effects.sort(key=lambda e: -max(node_score.get(k, 0.0) for k in e.nodes))
-    out = []
-    for effect in effects[:n]:
-        ref = effect.at_reference(model, f_e)
-        extended = ref.apply(model)
-        out.append(Candidate(ref, ref.extension(model, extended), model=extended, scan=ref.scan))
+def structural_candidates(aug: Model, stiffened) -> list[Candidate]:
+    """The released joints and supports of ``aug``: one log-factor on each one's springs,
+    from :data:`STIFF` × its reference (θ = 0) down; prior and scan about the reference."""
+    out, shift = [], -np.log(STIFF)
+    for stiff, (ids, ids_2) in stiffened:
+        out.append(Candidate(stiff, extension(aug, k_log=ids, k_log_2=ids_2),
+                             scan=tuple(tuple(shift + np.atleast_1d(t)) for t in stiff.scan),
+                             prior_mean=np.full(len(stiff.prior_sd), shift)))
     return out
 
 
-def shortlist(cands: list[Candidate], shortlist: int, per_kind: int, kinds) -> list[Candidate]:
-    """The best screened candidates overall and per kind, and every structural one."""
-    screened = sorted((c for c in cands if c.family != "structural"), key=lambda c: -c.screen)
-    short = screened[:shortlist]
+def shortlist(cands: list[Candidate], best: int, per_kind: int, kinds, within: float) -> list[Candidate]:
+    """The ``best`` screened candidates overall, and of each kind those screening at least
+    ``within`` of the kind's best, at most ``per_kind``."""
+    screened = sorted(cands, key=lambda c: -np.nan_to_num(c.screen, nan=-np.inf))
+    short = screened[:best]
     for kind in kinds:
-        short += [c for c in screened if c.effect.kind == kind][:per_kind]
-    return list(dict.fromkeys(short)) + [c for c in cands if c.family == "structural"]
+        of_kind = [c for c in screened if c.effect.kind == kind]
+        if of_kind:
+            top = of_kind[0].screen
+            short += [c for c in of_kind if c.screen >= within * top][:per_kind]
+    return list(dict.fromkeys(short))
 
 
 def group_screens(cands: list[Candidate]) -> dict[int, float]:
@@ -258,3 +323,8 @@ def node_max(model: Model, elem: dict[int, float]) -> dict[int, float]:
 
 def _param_eids(model: Model, p: Parameter) -> np.ndarray:
     return np.union1d(model.element_ids(pids=p.pids) if p.pids else np.zeros(0, np.int64), np.asarray(p.eids, np.int64))
+
+
+def neighbours(model: Model, node: int) -> list[int]:
+    """Grids joined to ``node`` by one structural element."""
+    return [g for g in element_grids(model, elements_at(model, node)) if g != node]

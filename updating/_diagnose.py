@@ -1,23 +1,24 @@
 """Diagnosis: where the model fails and which physical effect is missing.
 
 1. **Baseline**: the model, updated with the engineer's parameters if any (thesis §3.2).
-2. **Localisation** at the baseline, by two independent methods: (a) sensitivity — the
+2. **Localisation** by two independent methods: (a) residual forces of the measured
+   modes expanded to the model (Friswell & Mottershead 1995, §8,
+   :func:`residual_forces`), which define the localised region, (b) sensitivity — the
    share ρ of the residual that one Gauss–Newton step in a single element's (group's)
-   stiffness or mass removes (Friswell & Mottershead 1995, §7), (b) residual forces of
-   the measured modes expanded to the model (ibid. §8, :func:`residual_forces`).
-3. **Candidates** generated from the model by each kind (:mod:`updating._effects`),
-   screened by the linearised residual reduction ρ (the same Jacobian as (a),
-   :mod:`updating._candidates`); the best of each kind and
-   the best overall, and the structural ones (joints, released supports) nearest the
-   localised error, are **fitted** with the baseline parameters (Optimistix
-   Levenberg–Marquardt; candidates of one model structure share one compiled solver, their
-   masks being traced arguments; the screening Jacobian of all elements is one ``jacfwd``).
-4. **Ranking by evidence that generalises** (:mod:`updating._evidence`): k-fold cross-validation over the test modes
-   (fit on the others, predict the held-out ones — the thesis' active/passive idea made
-   systematic, §4.2.4.2) and Akaike's criterion ``AIC = n ln(RSS/n) + 2k`` which charges
-   for added parameters. An effect is *warranted* when it removes at least
-   ``min_score`` % of the held-out error, lowers AIC by at least ``min_delta_aic`` and is
-   plausible; otherwise parameter errors alone explain the data.
+   stiffness or mass removes (ibid. §7).
+3. **Candidates** of every kind (:mod:`updating._effects`): group factors and laws, an
+   added mass and springs to ground at *every* grid of the region, and every joint or
+   support in it — all on one model (:func:`~updating._candidates.augment`), so that all
+   fits share one compiled solver. They are screened by the linearised residual
+   reduction ρ (joints and supports by a coarse scan of their stiffness); per kind those
+   within ``within`` of the kind's best are fitted (Optimistix Levenberg–Marquardt).
+4. **Ranking by evidence** (:mod:`updating._evidence`): the Laplace approximation of each
+   candidate's marginal likelihood under its kind's prior, posterior probabilities over
+   the candidates and the baseline; the most probable ones are cross-validated over the
+   test modes (the thesis' active/passive idea made systematic, §4.2.4.2). An effect is
+   declared only when it is decisively more probable than the baseline, lowers χ² beyond
+   noise and lowers the held-out error in frequencies and in shapes; places of one kind
+   the data cannot tell apart are reported as ties.
 
 Residual rows are weighted by the expected measurement noise (relative frequency σ_f,
 relative shape σ_φ per component), so the cost is a χ² and frequencies and shapes weigh
@@ -44,15 +45,17 @@ from ._candidates import (
     group_candidates,
     group_screens,
     localised_grids,
+    neighbours,
     node_candidates,
     node_max,
+    region_structures,
     shortlist,
     structural_candidates,
 )
 from ._correlation import comac, pair_modes
 from ._effects import KINDS, AbstractEffect
 from ._engine import Settings
-from ._evidence import Fits, combine, evidence, fold_masks, run_fits, scan_start, verdict
+from ._evidence import Fits, combine, cross_validate, evidence, fit, fold_masks, scan_costs, scan_start, verdict
 from ._extension import extension
 from ._localisation import group_scores, reduction, residual_forces
 from ._parameters import Options, Parameter, ParameterSet
@@ -68,32 +71,34 @@ class DiagnoseOptions:
     """Settings of :func:`diagnose`.
 
     ``noise_freq``/``noise_shape``: expected relative σ of measured frequencies and of
-    shape components (Table 4.7 magnitudes). ``folds``: cross-validation folds over the
-    test modes. ``shortlist``: screened candidates fitted in full, plus the ``per_kind``
-    best of each kind; ``max_structural``:
-    joints and released supports fitted (nearest the localised error); ``max_nodes``:
-    grids tried for added masses and springs. ``min_score`` (% of held-out error removed)
-    and ``min_delta_aic``: evidence an effect needs to be warranted. Every fit is the
-    engine's Levenberg–Marquardt loop (:mod:`updating._engine`), converged when no factor
-    changes by more than ``tolerance``, at most ``max_steps`` steps.
+    shape components (Table 4.7 magnitudes). ``region``: the localised region holds the
+    grids of the groups screening at least this share of the best and the grids scoring at
+    least this share of the best (at most ``max_nodes`` grids and ``max_structural``
+    joints or supports). Fitted: the ``shortlist`` best
+    screened candidates, and of each kind those screening at least ``within`` of the
+    kind's best (at most ``per_kind``). ``cross_validate``: the most probable candidates
+    cross-validated with ``folds`` folds over the test modes. Every fit is the engine's
+    Levenberg–Marquardt loop (:mod:`updating._engine`), converged when no factor changes
+    by more than ``tolerance`` relative (|Δ ln factor|), at most ``max_steps`` steps.
     """
 
     noise_freq: float = 0.002
     noise_shape: float = 0.01
     folds: int = 4
-    shortlist: int = 6
-    per_kind: int = 2
-    max_structural: int = 3
-    max_nodes: int = 10
-    min_score: float = 20.0
-    min_delta_aic: float = 10.0
-    max_steps: int = 30
-    tolerance: float = 1e-5
+    region: float = 0.3
+    max_nodes: int = 30
+    max_structural: int = 6
+    shortlist: int = 4
+    per_kind: int = 3
+    within: float = 0.5
+    cross_validate: int = 2
+    max_steps: int = 20
+    tolerance: float = 1e-3
     kinds: tuple[str, ...] = KINDS
 
     @property
     def settings(self) -> Settings:
-        return Settings(False, self.tolerance, self.max_steps, self.max_steps)
+        return Settings(False, self.tolerance, self.max_steps, self.max_steps, relative=True)
 
 
 @dataclass
@@ -120,7 +125,8 @@ class Diagnosis:
 def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = None, *,
              options: DiagnoseOptions = DiagnoseOptions(),
              progress: Callable[[str], None] | None = None) -> Diagnosis:
-    """Compare, localise, and rank candidate effects by how well they predict held-out modes.
+    """Compare, localise, rank candidate effects by their posterior probability and declare
+    one only when it also predicts held-out modes better (module docstring).
 
     **Arguments:** the nominal model; measured modes; the engineer's updating parameters
     (the baseline; None = the nominal model as it is); options; ``progress`` receives a
@@ -128,6 +134,7 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     """
     say = progress or (lambda s: None)
     start = time.perf_counter()
+    elapsed = lambda: f"{time.perf_counter() - start:.0f} s"  # noqa: E731
     params = tuple(parameters.parameters) if parameters else ()
     n_b = len(params)
     ne, ns = len(test.frequencies_hz), len(test.sensors)
@@ -137,64 +144,77 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     pset = ParameterSet(params, Options(eigenvalue_weight=w_lam, regularisation=sigma2 / 9,
                                         n_model_modes=parameters.options.n_model_modes if parameters else None))
     masks = fold_masks(ne, options.folds)
-    fits = Fits()
+    fits = Fits(options.settings)
     f_e = np.asarray(test.frequencies_hz)
 
-    # -- localisation at the nominal model: where to put node-based candidates
+    # -- localisation at the nominal model: the region where node-based candidates go
     say("localising the error (residual forces)")
     nominal_problem = build_problem(model, test, pset)
     C = np.asarray(nominal_problem.C)
     elem_b, node_b = residual_forces(model, np.asarray(nominal_problem.lam_e), np.asarray(nominal_problem.phi_e), C)
-    nodes = localised_grids(model, node_b, options.max_nodes)
+    say(f"localising the error (sensitivity of every element at the nominal model, {elapsed()})")
+    nominal_screen = Screen.at(nominal_problem, np.zeros(n_b), model, params, f_e)
+    node_nominal = combine(node_max(model, dict(zip(nominal_screen.k_ids.tolist(), reduction(
+        nominal_screen.r, nominal_screen.J_k, nominal_screen.J_b).tolist()))), node_b)
+    nodes = localised_grids(model, nominal_screen, node_nominal, options.max_nodes, options.region)
+    structures = region_structures(model, nodes, node_nominal, options.kinds, options.max_structural)
     mass = total_mass(model)
-    aug, dormant = augment(model, nodes, f_e)
+    aug, dormant, stiffened = augment(model, nodes, structures, f_e)
     problem = build_problem(aug, test, pset)
+    say(f"region: {len(nodes)} grids, {len(structures)} joints or supports; one model of {aug.n_dof} DoFs")
 
     # -- baseline: the engineer's parameters fitted on all modes and on each fold
     say(f"baseline fit ({n_b} parameters, {len(masks) - 1}-fold cross-validation over {ne} modes)")
-    base = run_fits(fits, problem, [extension(aug)], [np.zeros(n_b + 1)], masks, options.settings)[0]
+    none = extension(aug)
+    base = fit(fits, problem, none, np.zeros(n_b + 1))
+    cross_validate(fits, problem, none, base, masks)
     theta_b = base["theta"][:n_b]
 
-    # -- screening Jacobian at the baseline: every element's stiffness and mass, dormant ones
-    say("screening (sensitivity of every element)")
-    screen = Screen.at(problem, base["theta"], n_b, f_e)
+    # -- screening at the baseline: every element's stiffness and mass (the Jacobian), the
+    # joints and supports by a scan of their stiffness
+    say(f"screening (sensitivity of every element) ({elapsed()})")
+    screen = Screen.at(problem, base["theta"], model, params, f_e)
     elem_a = {int(e): float(v) for e, v in zip(screen.k_ids, reduction(screen.r, screen.J_k, screen.J_b))}
     node_a = node_max(aug, elem_a)
     cands = group_candidates(model, aug, params, screen) + node_candidates(aug, dormant, screen)
     cands = [c for c in cands if c.effect.kind in options.kinds]
+    structural = structural_candidates(aug, stiffened)
+    for c in structural:  # both factors together, then each alone about the best point if that helps
+        grid = list(c.scan)
+        costs = list(scan_costs(fits, problem, c.ext, theta_b, grid))
+        if c.ext.split and min(costs) < base["cost"]:
+            t, r = grid[int(np.argmin(costs))]
+            more = [(t + d, r) for d in (-3.0, -1.5, 1.5)] + [(t, r + d) for d in (-3.0, -1.5, 1.5)]
+            grid, costs = grid + more, costs + list(scan_costs(fits, problem, c.ext, theta_b, more))
+        c.screen, c.theta0 = 1 - float(np.min(costs)) / base["cost"], np.atleast_1d(grid[int(np.argmin(costs))])
+        cands.append(c)
     node_score = combine(node_a, node_b)
-    cands += structural_candidates(model, node_score, options.kinds, options.max_structural, f_e)
-    short = shortlist(cands, options.shortlist, options.per_kind, options.kinds)
-    say(f"{len(cands)} candidates screened; fitting {len(short)} with {len(masks) - 1}-fold cross-validation")
+    short = shortlist(cands, options.shortlist, options.per_kind, options.kinds, options.within)
+    say(f"{len(cands)} candidates screened; fitting {len(short)} ({elapsed()})")
 
-    # -- fits: all modes, then the folds for those that could pass the AIC test
-    n_rows = ne * (1 + ns)
-
-    def theta_start(c):
-        return np.concatenate([theta_b, c.theta0])
-
-    def keep(k_e):
-        return lambda cost: n_rows * np.log(max(cost, 1e-300) / base["cost"]) + 2 * k_e <= -options.min_delta_aic
-
-    for c in short:
-        if c.scan is not None and c.family != "structural":
+    for c in short:  # the better of the linearised step and none (the joints' scans are done)
+        if c.scan is not None and c not in structural:
             c.theta0 = scan_start(fits, problem, c.ext, theta_b, c.scan)
     for family in ("mask", "visco"):
         group = [c for c in short if c.family == family]
         if group:
-            say(f"  {family}: {len(group)} candidates × {len(masks)} fits ({time.perf_counter() - start:.0f} s)")
-            for c, res in zip(group, run_fits(fits, problem, [c.ext for c in group], [theta_start(c) for c in group],
-                                              masks, options.settings, keep(group[0].ext.n_params))):
-                c.result = res
-    for c in short:
-        if c.family == "structural":
-            say(f"  {c.effect.kind} {c.effect.where()} ({time.perf_counter() - start:.0f} s)")
-            p = build_problem(c.model, test, pset)
-            c.theta0 = scan_start(fits, p, c.ext, theta_b, c.scan)
-            c.result = run_fits(fits, p, [c.ext], [theta_start(c)], masks, options.settings, keep(1))[0]
+            say(f"  {family}: {len(group)} candidates ({elapsed()})")
+        for c in group:
+            c.result = fit(fits, problem, c.ext, np.concatenate([theta_b, c.theta0]))
 
-    effects, ranked = evidence(short, base, n_b, n_rows, sigma2, mass, options.min_score, options.min_delta_aic)
-    best = ranked[0].effect if effects and effects[0]["warranted"] else None
+    # -- the place refined: an added mass or spring moves to a neighbouring grid while that fits better
+    for c0, c1 in _refine_places(fits, problem, aug, cands, short, base, theta_b):
+        say(f"  {c1.reference.kind} moved from grid {c0.reference.nodes[0]} to {c1.reference.nodes[0]} ({elapsed()})")
+
+    # -- evidence; the most probable candidates cross-validated
+    n_rows = (ne, ne * ns)
+    _, ranked, _ = evidence(short, base, n_b, n_rows, sigma2, mass, options.noise_freq)
+    top = [c for c in ranked if np.isfinite(c.result["cost"])][:options.cross_validate]
+    say(f"cross-validating the {len(top)} most probable ({len(masks) - 1} folds, {elapsed()})")
+    for c in top:
+        cross_validate(fits, problem, c.ext, c.result, masks)
+    effects, ranked, summary = evidence(short, base, n_b, n_rows, sigma2, mass, options.noise_freq)
+    best = ranked[0].effect if summary["outcome"] == "effect" else None
 
     # -- comparison at the baseline
     ev = evaluate(jnp.asarray(base["theta"]), problem)
@@ -205,6 +225,7 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     group_b = group_scores(elem_b, model)
     group_a = group_screens(cands)
     groups = combine(group_a, group_b)
+    chi2 = lambda cost: float(cost / sigma2 / sum(n_rows))  # noqa: E731
     report = {
         "paired_modes": compared["paired_modes"],
         "unpaired_test": compared["unpaired_test"],
@@ -212,15 +233,19 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
         "baseline": {"parameters": [{"name": p.name, "alpha": float(np.expm1(t))} for p, t in zip(params, theta_b)],
                      "rms_freq_dev_pct": rms_pct(base["freq_dev"]), "mean_mac": float(np.nanmean(base["mac"])),
                      "heldout_rms_freq_dev_pct": rms_pct(base["heldout_freq_dev"]),
-                     "chi2_per_row": float(base["cost"] / sigma2 / n_rows)},
+                     "heldout_mean_mac": float(np.nanmean(base["heldout_mac"])),
+                     "chi2_per_row": chi2(base["cost"]), "chi2_per_row_freq": chi2(base["cost_freq"]) * sum(n_rows) / ne,
+                     "chi2_per_row_shape": chi2(base["cost_shape"]) * sum(n_rows) / (ne * ns)},
         "sensors": [{"label": lab, "comac": float(v)} for lab, v in zip(test.sensors.labels, co)],
         "localisation": {
             "groups": [{"pid": p, "score": s, "sensitivity": group_a.get(p, 0.0), "residual_force": group_b.get(p, 0.0)}
                        for p, s in groups.items()],
             "nodes": [{"node": n, "score": s, "sensitivity": node_a.get(n, 0.0), "residual_force": node_b.get(n, 0.0)}
                       for n, s in list(node_score.items())[:30]],
+            "region": nodes,
         },
         "effects": effects,
+        **summary,
         "no_effect_warranted": best is None,
         "candidates_evaluated": len(cands),
         "candidates_fitted": len(short),
@@ -232,6 +257,33 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     return Diagnosis(report, best, ranked, model, params, combine(
         {e: v for e, v in elem_a.items() if e in set(model.element_ids().tolist())}, elem_b), node_score,
         (np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model)))
+
+
+def _refine_places(fits: Fits, problem, aug: Model, cands: list[Candidate], short: list[Candidate], base: dict,
+                   theta_b: np.ndarray) -> list[tuple[Candidate, Candidate]]:
+    """Hill-climb over the grids: the best fitted added mass (spring to ground) is fitted
+    at the neighbouring grids of the region, and moves while one fits better (the
+    linearised screen hardly separates neighbours). Fitted candidates join ``short``;
+    returns the moves made."""
+    at_grid = {(c.reference.kind, c.reference.nodes): c for c in cands if c.family == "mask"
+               and c.reference.kind in ("added_mass", "boundary_spring") and not c.ext.split}
+    moves = []
+    for kind in ("added_mass", "boundary_spring"):
+        tried = [c for c in short if c.reference.kind == kind and (kind, c.reference.nodes) in at_grid]
+        best = min(tried, key=lambda c: c.result["cost"], default=None)
+        while best is not None and best.result["cost"] < base["cost"]:
+            new = [at_grid[kind, (g,)] for g in neighbours(aug, best.reference.nodes[0])
+                   if (kind, (g,)) in at_grid and at_grid[kind, (g,)] not in short]
+            for c in new:
+                c.theta0 = scan_start(fits, problem, c.ext, theta_b, c.scan)
+                c.result = fit(fits, problem, c.ext, np.concatenate([theta_b, c.theta0]))
+                short.append(c)
+            step = min(new, key=lambda c: c.result["cost"], default=best)
+            if step.result["cost"] >= best.result["cost"]:
+                break
+            moves.append((best, step))
+            best = step
+    return moves
 
 
 # ---------------------------------------------------------------------------------------
@@ -257,7 +309,7 @@ class Confirmation:
 
 def add_effect(model: Model, test: ModalData, effect: AbstractEffect, parameters: ParameterSet | None = None, *,
                passive_modes: tuple[int, ...] | None = None,
-               progress: Callable[[Iteration], None] | None = None) -> Confirmation:
+               progress: Callable[[Iteration], None] | None = None, noise_freq: float = 0.002) -> Confirmation:
     """Add ``effect`` and update it with the engineer's parameters, holding
     ``passive_modes`` out of the fit (default: every fourth test mode from the third);
     compare with the update without it. The effect starts from its ``values`` (e.g. as
@@ -266,7 +318,9 @@ def add_effect(model: Model, test: ModalData, effect: AbstractEffect, parameters
     log-factors give its final values (``effect.updated``).
 
     **Returns:** a :class:`Confirmation`; ``report`` is JSON-ready (per-mode Δf and MAC
-    before/after with roles, RMS Δf over active and passive modes, iteration history).
+    before/after with roles, RMS Δf over active and passive modes, iteration history, and
+    ``worse``: the modes whose |Δf| grew by more than 2σ of the frequency noise
+    ``noise_freq``, relative).
     """
     ne = len(test.frequencies_hz)
     passive = tuple(passive_modes) if passive_modes is not None else tuple(i for i in range(1, ne + 1) if i % 4 == 3)
@@ -306,6 +360,8 @@ def add_effect(model: Model, test: ModalData, effect: AbstractEffect, parameters
         "mean_mac_passive_after": json_number(np.nanmean(m1[is_passive])) if is_passive.any() else None,
         "history": [h.to_json(after.names, is_passive) for h in after.history],
     }
+    grew = np.abs(d1) - np.abs(d0) > 2 * 100 * noise_freq  # NaN (unpaired before or after): not compared
+    report["worse"] = [r for r, g in zip(report["paired_modes"], grew) if g]
     return Confirmation(final, before, after, is_passive, report)
 
 
@@ -318,4 +374,4 @@ def start_values(model: Model, test: ModalData, effect: AbstractEffect, opts: Op
         return start
     extended = start.apply(model)
     problem = build_problem(extended, test, ParameterSet((), replace(opts or Options(), passive_modes=())))
-    return start.updated(scan_start(Fits(), problem, start.extension(model, extended), np.zeros(0), start.scan))
+    return start.updated(scan_start(Fits(DiagnoseOptions().settings), problem, start.extension(model, extended), np.zeros(0), start.scan))
