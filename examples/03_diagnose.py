@@ -4,12 +4,12 @@ The case of ``jaxfem demo`` (also ``01_correlate_garteur.py``): the nominal mode
 measured modes and the engineer's parameters (fuselage and wing stiffness). The
 diagnosis fits those first (the baseline), localises the remaining error, generates
 candidate effects (group stiffness/mass, joints, added masses, springs, frequency-
-dependent stiffness), and ranks them by 4-fold cross-validation over the test modes and
-AIC. The truth has a flexible joint at the fin root (RBE2 1029 → 6001): the winner should
-be ``joint`` at grid 6001. To run in about a minute on one core (the defaults take
-about twice that) it fits fewer candidates than ``jaxfem demo``: the 3 best screened,
-the best of each kind and the one joint nearest the localised error
-(``DiagnoseOptions(shortlist=3, per_kind=1, max_structural=1)``; defaults 6, 2, 3).
+dependent stiffness), ranks them by Bayesian evidence (posterior probability) and tests
+the most probable on held-out modes (4-fold cross-validation). The truth has a flexible
+joint at the fin root (RBE2 1029 → 6001): the winner should be ``joint`` at grid 6001.
+It fits fewer candidates than ``jaxfem demo``: the 3 best screened, the best of each
+kind and the one joint nearest the localised error
+(``DiagnoseOptions(shortlist=3, per_kind=1, max_structural=1)``; defaults 4, 3, 6).
 Next: add the effect and update again (``updating.add_effect``, ``jaxfem update
 --add-effect joint:node=6001``), or ``jaxfem demo`` for all of it with an HTML report.
 """
@@ -38,11 +38,10 @@ def main() -> dict:
           f"{b['heldout_rms_freq_dev_pct']:.2f} %, χ²/row {b['chi2_per_row']:.1f}")
     print("where it fails (property groups): " + ", ".join(
         f"pid {g['pid']} {g['score']:.2f}" for g in rep["localisation"]["groups"][:4]))
-    print(f"{'rank':>4} {'effect':<36} {'score [%]':>9} {'ΔAIC':>8}  warranted")
-    for e in rep["effects"][:5]:
-        score = f"{e['score']:>9.1f}" if e["cross_validated"] else f"{'–':>9}"  # –: not cross-validated
-        print(f"{e['rank']:>4} {e['kind'] + ' ' + e['where']:<36.36} {score} {e['delta_aic']:>8.1f}  "
-              f"{'yes' if e['warranted'] else 'no'}")
+    print(f"{'rank':>4} {'effect':<36} {'posterior':>9} {'ln B':>9}  declared")
+    for e in rep["effects"][:5]:  # ln B: log Bayes factor against the baseline
+        print(f"{e['rank']:>4} {e['kind'] + ' ' + e['where']:<36.36} {e['posterior']:>9.3f} "
+              f"{e['log_evidence']:>9.1f}  {'yes' if e['warranted'] else 'no'}")
     print(rep["verdict"])
     print(f"{rep['candidates_evaluated']} candidates screened, {rep['candidates_fitted']} fitted, "
           f"{rep['seconds']:.0f} s")

@@ -46,7 +46,7 @@ def test_diagnose_finds_the_missing_mass_and_writes_json_and_report(tmp_path):
     best = d["effects"][0]
     assert (best["kind"], best["nodes"], best["pids"], best["eids"]) == ("added_mass", [14], [], [])
     assert abs(best["parameters"]["m"] - 25.0) < 2.5  # kg
-    assert best["warranted"] and not d["no_effect_warranted"] and best["score"] > 50
+    assert best["warranted"] and d["outcome"] == "effect" and best["score"] > 50 and best["posterior"] > 0.9
     assert best["heldout_rms_freq_dev_pct_after"] < 0.5 < best["heldout_rms_freq_dev_pct_before"]
     assert [g["pid"] for g in d["localisation"]["groups"]] and d["localisation"]["nodes"][0]["score"] <= 1.0
     assert d["paired_modes"][0].keys() >= {"test", "model", "f_test_hz", "f_model_hz", "mac"}
@@ -56,7 +56,7 @@ def test_diagnose_finds_the_missing_mass_and_writes_json_and_report(tmp_path):
     assert abs(after["effect"]["parameters"]["m"] - 25.0) < 2.5
     html = (report / "report.html").read_text()
     assert html.count("data:image/png;base64,") >= 7 and "added_mass" in html
-    assert "Missing effect: added_mass" in result.output
+    assert "Add 2" in result.output and "kg" in result.output and "at grid 14: held-out frequency error" in result.output
 
 
 def test_update_add_effect(tmp_path):

@@ -304,7 +304,7 @@ def plot_effect_ranking(effects: list[dict]):
     """Held-out RMS Δf [%] before / after each candidate effect, best at the top.
 
     **Arguments:** ``effects``: dicts with ``kind``, ``pids``/``eids``/``nodes``,
-    ``score``, ``heldout_rms_freq_dev_pct_before`` and ``..._after`` (a missing key
+    ``posterior``, ``heldout_rms_freq_dev_pct_before`` and ``..._after`` (a missing key
     skips that bar), best first or ordered by ``rank``; at most 12 are drawn.
     **Returns:** the figure.
     """
@@ -330,8 +330,8 @@ def plot_effect_ranking(effects: list[dict]):
                         label=name if first else None)
                 top, first = max(top, float(e[key])), False
     for yi, e in zip(y, effects):
-        if _finite(e.get("score")):
-            ax.text(0.99, yi, f"score {float(e['score']):.3g}", ha="right", va="center", fontsize=8,
+        if _finite(e.get("posterior")):
+            ax.text(0.99, yi, f"posterior {float(e['posterior']):.2g}", ha="right", va="center", fontsize=8,
                     transform=ax.get_yaxis_transform())
     ax.set_xlim(0.0, 1.3 * top if top > 0 else 1.0)
     ax.set_yticks(y, [f"{e.get('kind', '?')} {effect_where(e)}".strip() for e in effects])

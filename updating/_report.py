@@ -127,7 +127,7 @@ def write_report(diagnosis: dict, figures: dict, path) -> Path:
     **Arguments:** ``diagnosis``: dict with any of ``model``, ``test``, ``verdict``,
     ``paired_modes``, ``unpaired_test``, ``unpaired_model``, ``baseline``,
     ``sensors``, ``localisation`` (``groups``, ``nodes``), ``effects``,
-    ``no_effect_warranted``, ``after``; ``figures``: name → matplotlib figure (or PNG
+    ``outcome``, ``after``; ``figures``: name → matplotlib figure (or PNG
     path); names ``mac``, ``freq_dev``, ``localisation_groups``, ``localisation_nodes``,
     ``effects``, ``freq_dev_after``, ``mac_after``, ``convergence`` go to their
     section, others under "More plots". Sections without data are left out.
@@ -168,15 +168,20 @@ def write_report(diagnosis: dict, figures: dict, path) -> Path:
         *figs_of("localisation_groups", "localisation_nodes")])
 
     effects = [{**e, "notes": "; ".join(map(str, e.get("plausibility") or []))} for e in d.get("effects") or []]
-    flag = d.get("no_effect_warranted")
-    flag_text = "" if flag is None else (
-        "<p><b>No candidate effect is warranted</b> by the held-out modes.</p>" if flag
-        else "<p>At least one candidate effect is warranted by the held-out modes.</p>")
+    outcome = {"effect": "<p>The most probable effect passes every test (more probable than the baseline, χ² "
+                         "and held-out error in frequencies and shapes lowered beyond noise).</p>",
+               "none_needed": "<p><b>No extra effect is warranted</b>: the baseline explains the data to the "
+                              "stated noise.</p>",
+               "unexplained": "<p><b>No single effect explains the data.</b></p>"}.get(d.get("outcome"), "")
     section("Candidate effects", [
-        _table(effects, ["rank", "kind", "pids", "eids", "nodes", "parameters", "score",
-                         "heldout_rms_freq_dev_pct_before", "heldout_rms_freq_dev_pct_after",
-                         "plausible", "notes"]) if effects else "",
-        flag_text, *figs_of("effects")])
+        _table(effects, ["rank", "kind", "where", "parameters", "posterior", "log_evidence", "log_occam",
+                         "chi2_per_row", "heldout_rms_freq_dev_pct_before", "heldout_rms_freq_dev_pct_after",
+                         "heldout_mean_mac_after", "score", "delta_aic", "warranted", "notes"]) if effects else "",
+        "<p>posterior: probability among the fitted candidates and the baseline (Laplace evidence, equal "
+        "prior odds); log_evidence: ln Bayes factor against the baseline; log_occam: the price of the "
+        "parameters' freedom; score: % of the cross-validated residual removed; delta_aic: ΔAIC.</p>"
+        if effects else "",
+        outcome, *figs_of("effects")])
 
     after = d.get("after") or {}
     section("After adding the effect", [

@@ -23,13 +23,17 @@ def _print_diagnosis(rep: dict) -> None:
         f"pid {g['pid']} {g['score']:.2f}" for g in rep["localisation"]["groups"][:5]))
     typer.echo("                                              (grids): " + ", ".join(
         f"{n['node']} {n['score']:.2f}" for n in rep["localisation"]["nodes"][:5]))
-    typer.echo(f"{'rank':>4} {'effect':<34} {'score':>6} {'ΔAIC':>8} {'held-out Δf [%]':>16}  warranted")
+    typer.echo(f"{'rank':>4} {'effect':<34} {'posterior':>9} {'ln B':>9} {'χ²/row':>8} {'held-out Δf [%]':>16} "
+               f"{'MAC':>6}  declared")
     for e in rep["effects"][:10]:
         where = f"{e['kind']} {e['where']}"[:34]
-        notes = "  (" + "; ".join(e["plausibility"]) + ")" if e["plausibility"] else ""
-        typer.echo(f"{e['rank']:>4} {where:<34} {_fmt(e['score'], '>6.1f')} {e['delta_aic']:>8.1f} "
-                   f"{_fmt(e['heldout_rms_freq_dev_pct_before'], '>7.2f')} → "
-                   f"{_fmt(e['heldout_rms_freq_dev_pct_after'], '<6.2f')}  {'yes' if e['warranted'] else 'no'}{notes}")
+        notes = "  (prior: " + "; ".join(e["plausibility"]) + ")" if e["plausibility"] else ""
+        typer.echo(f"{e['rank']:>4} {where:<34} {e['posterior']:>9.3f} {e['log_evidence']:>9.1f} "
+                   f"{e['chi2_per_row']:>8.2f} {_fmt(e['heldout_rms_freq_dev_pct_before'], '>7.2f')} → "
+                   f"{_fmt(e['heldout_rms_freq_dev_pct_after'], '<6.2f')} {_fmt(e['heldout_mean_mac_after'], '>6.3f')}"
+                   f"  {'yes' if e['warranted'] else 'no'}{notes}")
+    typer.echo(f"(posterior over the candidates and the baseline, {rep['baseline_posterior']:.3f}; ln B: log Bayes "
+               f"factor against the baseline; noise scaled by {rep['noise_scale']:.3g})")
     typer.echo(rep["verdict"])
 
 
@@ -44,6 +48,9 @@ def _print_confirmation(after: dict) -> None:
     typer.echo(f"passive (held-out) modes: RMS Δf {after['rms_freq_dev_pct_passive_before']:.2f} % → "
                f"{after['rms_freq_dev_pct_passive_after']:.2f} %; active: {after['rms_freq_dev_pct_active_before']:.2f} % → "
                f"{after['rms_freq_dev_pct_active_after']:.2f} %")
+    for w in after["worse"]:
+        typer.echo(f"warning: test mode {w['test']} is worse after adding the effect: Δf {w['freq_dev_pct_before']:+.2f} % "
+                   f"→ {w['freq_dev_pct_after']:+.2f} % (beyond 2σ of the stated noise)")
 
 
 def _figures(rep: dict, diag, confirmation, model, test, report: Path) -> dict:
@@ -103,7 +110,8 @@ def diagnosis(model, test, params, *, model_name: str, test_name: str, json_out:
         def progress(it) -> None:
             typer.echo(f"[update] iteration {it.iteration:3d}  cost {it.cost:.4e}", err=True)
 
-        confirmation = add_effect(model, test, diag.best, params, progress=progress)
+        confirmation = add_effect(model, test, diag.best, params, progress=progress,
+                                  noise_freq=(options or DiagnoseOptions()).noise_freq)
         rep["after"] = confirmation.to_json()
         _print_confirmation(rep["after"])
     if frf_path is not None and confirmation is not None:
@@ -130,8 +138,8 @@ def diagnose(
     noise_shape: Annotated[float, typer.Option("--noise-shape", help="expected shape error per component, % (1σ)")] = 1.0,
 ) -> None:
     """Where does the model fail, and which physical effect is missing? Localise the error,
-    rank candidate effects by cross-validated prediction of held-out modes and AIC, add the
-    best one and update again."""
+    rank candidate effects by Bayesian evidence, test the most probable on held-out modes,
+    add it and update again."""
     from .._diagnose import DiagnoseOptions
 
     check_plots(report)

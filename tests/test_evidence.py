@@ -1,0 +1,49 @@
+"""The evidence of a candidate effect: the Laplace approximation against the exact
+marginal likelihood of a linear-Gaussian model, and the verdict's three outcomes."""
+
+import numpy as np
+import pytest
+
+from updating._evidence import log_evidence, verdict
+
+
+def test_laplace_is_exact_for_a_linear_gaussian_model():
+    """r(θ) = y − Aθ, noise σ², prior N(μ, diag s²): at the posterior mode the Laplace
+    approximation is the exact ln Z (up to the data's normalisation, common to all models)."""
+    rng = np.random.default_rng(3)
+    A = rng.standard_normal((40, 3))
+    y = A @ np.array([0.3, -0.2, 0.5]) + 0.05 * rng.standard_normal(40)
+    sigma2, mu, sd = 0.05 ** 2, np.array([0.0, 0.1, 0.0]), np.array([1.0, 0.5, 2.0])
+    P = np.diag(1 / sd ** 2)
+    H = A.T @ A / sigma2 + P
+    theta = np.linalg.solve(H, A.T @ y / sigma2 + P @ mu)  # the posterior mode
+    r = y - A @ theta
+    lz, occam, post_sd = log_evidence({"cost": float(r @ r), "jac": -A, "theta": theta}, mu, sd, sigma2)
+    # exact: y ~ N(Aμ, σ²I + A S Aᵀ); drop −(n/2) ln(2πσ²) as log_evidence does
+    C = sigma2 * np.eye(40) + A @ np.diag(sd ** 2) @ A.T
+    d = y - A @ mu
+    exact = -0.5 * d @ np.linalg.solve(C, d) - 0.5 * np.linalg.slogdet(C)[1] + 20 * np.log(sigma2)
+    assert lz == pytest.approx(exact, rel=1e-10)
+    assert occam == pytest.approx(lz + 0.5 * r @ r / sigma2, rel=1e-12)
+    np.testing.assert_allclose(post_sd, np.sqrt(np.diag(np.linalg.inv(H))), rtol=1e-10)
+    assert log_evidence({"cost": np.inf}, mu, sd, sigma2)[0] == -np.inf  # a failed fit ranks last
+
+
+def _report(outcome, chi2_base, effects=(), ties=()):
+    return {"outcome": outcome, "ties": list(ties), "effects": list(effects),
+            "baseline": {"chi2_per_row": chi2_base, "heldout_rms_freq_dev_pct": 0.9}}
+
+
+def test_verdict_says_what_to_do_or_that_nothing_single_explains_the_data():
+    e = {"kind": "added_mass", "where": "node 214", "advice": "add 0.4 kg (±0.05 kg) at grid 214",
+         "heldout_rms_freq_dev_pct_before": 0.9, "heldout_rms_freq_dev_pct_after": 0.21, "posterior": 0.97,
+         "chi2_per_row": 1.1, "log_evidence": 250.0}
+    assert verdict(_report("effect", 30.0, [e])) == (
+        "Add 0.4 kg (±0.05 kg) at grid 214: held-out frequency error 0.90 % → 0.21 % (posterior probability 0.97).")
+    tie = {"where": "node 215"}
+    assert "cannot tell it apart from node 215" in verdict(_report("effect", 30.0, [e], [tie]))
+    assert "more than this one effect" in verdict(_report("effect", 30.0, [{**e, "chi2_per_row": 9.0}]))
+    text = verdict(_report("unexplained", 417.0, [{**e, "chi2_per_row": 300.0}]))
+    assert text.startswith("No single effect explains the data") and "417" in text and "model form" in text
+    assert "added_mass at node 214" in text  # the best partial candidate
+    assert verdict(_report("none_needed", 0.9)).startswith("No extra effect is warranted")
