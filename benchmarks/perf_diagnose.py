@@ -1,0 +1,78 @@
+"""Diagnosis on data no jaxfem model produced: time and verdict per case, one run.
+
+Every case of :mod:`benchmarks.truth_cases` (an independent FE truth with one hidden
+effect, noise 0.2 % / 1 %) is diagnosed at the defaults, each in a fresh
+:func:`updating.diagnose` (compilation included: a diagnosis frees its compiled code).
+Per case: the hidden effect, what was declared (kind, place), whether that is right,
+held-out RMS Δf before → after, the posterior, χ² per row after, seconds.
+Run it alone on the machine (two heavy JAX processes slow each other ~4×).
+
+Usage: ``python -m benchmarks.perf_diagnose [--cases NAME ...] [--json OUT]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+import jaxfem  # noqa: E402
+from benchmarks.truth_cases import CASES, found, measure, nominal, parameters  # noqa: E402
+from jaxfem.io import read_bdf_text  # noqa: E402
+from updating import diagnose  # noqa: E402
+
+
+def run_case(case) -> dict:
+    """Diagnose one case; its row of the table."""
+    text, _, _, _ = nominal(case)
+    model = jaxfem.build_model(read_bdf_text(text))
+    test = measure(case)
+    start = time.perf_counter()
+    report = diagnose(model, test, parameters(case)).report
+    seconds = time.perf_counter() - start
+    top = report["effects"][0] if report["outcome"] == "effect" else None
+    return {
+        "case": case.name, "hidden": case.description, "n_dof": model.n_dof, "modes": len(test.frequencies_hz),
+        "outcome": report["outcome"], "declared": f"{top['kind']} at {top['where']}" if top else "–",
+        "right": found(report, case), "ties": [t["where"] for t in report["ties"]],
+        "heldout_before_pct": report["baseline"]["heldout_rms_freq_dev_pct"],
+        "heldout_after_pct": top["heldout_rms_freq_dev_pct_after"] if top else None,
+        "posterior": top["posterior"] if top else report["baseline_posterior"],
+        "chi2_before": report["baseline"]["chi2_per_row"], "chi2_after": top["chi2_per_row"] if top else None,
+        "seconds": seconds, "verdict": report["verdict"],
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cases", nargs="*", default=[c.name for c in CASES])
+    parser.add_argument("--json", help="write the rows as JSON")
+    args = parser.parse_args()
+    print(f"# {platform.processor() or platform.machine()}, {os.cpu_count()} cores, jax {jax.__version__}")
+    print(f"{'case':<24} {'DoF':>4} {'declared':<44} {'right':>5} {'held-out Δf [%]':>16} {'post.':>6} "
+          f"{'χ²/row':>14} {'s':>5}")
+    rows = []
+    for case in CASES:
+        if case.name not in args.cases:
+            continue
+        r = run_case(case)
+        rows.append(r)
+        after = f"{r['heldout_after_pct']:.2f}" if r["heldout_after_pct"] is not None else "–"
+        chi2 = f"{r['chi2_before']:.1f} → {r['chi2_after']:.1f}" if r["chi2_after"] is not None else f"{r['chi2_before']:.1f}"
+        print(f"{r['case']:<24} {r['n_dof']:>4} {r['declared'][:44]:<44} {'yes' if r['right'] else 'NO':>5} "
+              f"{r['heldout_before_pct']:>7.2f} → {after:<6} {r['posterior']:>6.3f} {chi2:>14} {r['seconds']:>5.1f}",
+              flush=True)
+    print(f"{sum(r['right'] for r in rows)}/{len(rows)} right; slowest {max(r['seconds'] for r in rows):.1f} s")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(rows, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
