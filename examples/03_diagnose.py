@@ -9,7 +9,7 @@ the most probable on held-out modes (4-fold cross-validation). The truth has a f
 joint at the fin root (RBE2 1029 → 6001): the winner should be ``joint`` at grid 6001.
 It fits fewer candidates than ``jaxfem demo``: the 3 best screened, the best of each
 kind and the one joint nearest the localised error
-(``DiagnoseOptions(shortlist=3, per_kind=1, max_structural=1)``; defaults 4, 3, 6).
+(``DiagnoseOptions(shortlist=3, per_kind=1, max_structural=1)``; defaults 4, 3, 4).
 Next: add the effect and update again (``updating.add_effect``, ``jaxfem update
 --add-effect joint:node=6001``), or ``jaxfem demo`` for all of it with an HTML report.
 """

@@ -225,8 +225,9 @@ def augment(model: Model, nodes: list[int], structures: list[AbstractEffect], f_
     for effect in structures:
         ref = effect.at_reference(nominal, f_e)
         stiff = ref.updated(np.full(len(ref.prior_sd), np.log(STIFF)))
-        before, model = model, stiff.apply(model)
+        before, model = model, stiff.add_to(model)
         stiffened.append((stiff, stiff._halves(before, model) if stiff.split else (stiff._new(before, model), ())))
+    model = edit.refresh(model)  # once for all structures
     dormant = []
     for node in nodes:
         mass = AddedMass(nodes=(node,)).at_reference(nominal, f_e)

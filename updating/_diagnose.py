@@ -87,7 +87,7 @@ class DiagnoseOptions:
     folds: int = 4
     region: float = 0.3
     max_nodes: int = 30
-    max_structural: int = 6
+    max_structural: int = 4
     shortlist: int = 4
     per_kind: int = 3
     within: float = 0.5
@@ -179,13 +179,15 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     cands = group_candidates(model, aug, params, screen) + node_candidates(aug, dormant, screen)
     cands = [c for c in cands if c.effect.kind in options.kinds]
     structural = structural_candidates(aug, stiffened)
-    for c in structural:  # both factors together, then each alone about the best point if that helps
-        grid = list(c.scan)
-        costs = list(scan_costs(fits, problem, c.ext, theta_b, grid))
+    scans = {c: (list(c.scan), list(scan_costs(fits, problem, c.ext, theta_b, c.scan))) for c in structural}
+    for c in sorted(structural, key=lambda c: min(scans[c][1]))[:2]:  # the best two: each factor alone too
+        grid, costs = scans[c]
         if c.ext.split and min(costs) < base["cost"]:
             t, r = grid[int(np.argmin(costs))]
             more = [(t + d, r) for d in (-3.0, -1.5, 1.5)] + [(t, r + d) for d in (-3.0, -1.5, 1.5)]
-            grid, costs = grid + more, costs + list(scan_costs(fits, problem, c.ext, theta_b, more))
+            scans[c] = grid + more, costs + list(scan_costs(fits, problem, c.ext, theta_b, more))
+    for c in structural:
+        grid, costs = scans[c]
         c.screen, c.theta0 = 1 - float(np.min(costs)) / base["cost"], np.atleast_1d(grid[int(np.argmin(costs))])
         cands.append(c)
     node_score = combine(node_a, node_b)

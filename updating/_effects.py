@@ -22,6 +22,7 @@ model offers (``candidates``). The kinds, by their JSON/CLI names:
 
 from __future__ import annotations
 
+import abc
 from dataclasses import fields, replace
 from typing import ClassVar
 
@@ -230,6 +231,14 @@ class AbstractAddedElements(AbstractEffect):
         """Two free factors: translations and rotations."""
         return getattr(self, "k_rot", None) is not None
 
+    @abc.abstractmethod
+    def add_to(self, model: Model) -> Model:
+        """The model with this effect's elements added, its DoF map not yet refreshed
+        (several effects added at once refresh once: :func:`jaxfem._edit.refresh`)."""
+
+    def apply(self, model: Model) -> Model:
+        return edit.refresh(self.add_to(model))
+
     def _new(self, before: Model, after: Model) -> tuple[int, ...]:
         return tuple(sorted(set(after.element_ids().tolist()) - set(before.element_ids().tolist())))
 
@@ -317,7 +326,7 @@ class Joint(AbstractAddedElements):
                                label=f"grid {int(node)} between pids {' and '.join(map(str, sorted(at)))}"))
         return out
 
-    def apply(self, model: Model) -> Model:
+    def add_to(self, model: Model) -> Model:
         kt, kr = [self._need("k_trans")] * 3, [self._need("k_rot")] * 3
         dep = masters(model)
         for node in self.nodes:
@@ -333,7 +342,7 @@ class Joint(AbstractAddedElements):
             # translations and rotations: two bushes, two factors; the springs at the released grid
             model = edit.add_bush(model, a, b, kt + [0.0] * 3, s=1.0)[0]
             model = edit.add_bush(model, a, b, [0.0] * 3 + kr, s=1.0)[0]
-        return edit.refresh(model)
+        return model
 
     def at_reference(self, model: Model, f_test_hz) -> Joint:
         """Slightly flexible (:func:`~updating._topology.joint_reference` of the released side)."""
@@ -385,7 +394,7 @@ class BoundarySpring(AbstractAddedElements):
         return [cls(nodes=(int(n),), label=f"support at grid {int(n)}") for n in model.node_ids
                 if constrained_components(model, int(n)) and elements_at(model, int(n))]
 
-    def apply(self, model: Model) -> Model:
+    def add_to(self, model: Model) -> Model:
         for node in self.nodes:
             fixed = constrained_components(model, node)
             if fixed:
@@ -394,7 +403,7 @@ class BoundarySpring(AbstractAddedElements):
                     self._need("k_trans") if c <= 3 else self._need("k_rot") for c in fixed], fixed)[0]
             else:
                 model = edit.add_ground_springs(model, node, self._need("k"), (1, 2, 3))[0]
-        return edit.refresh(model)
+        return model
 
     def at_reference(self, model: Model, f_test_hz) -> BoundarySpring:
         """On free grids a spring that alone would carry the structure at f₁/10; a released
@@ -433,10 +442,10 @@ class AddedMass(AbstractAddedElements):
     def __check_init__(self):
         self._check_nodes()
 
-    def apply(self, model: Model) -> Model:
+    def add_to(self, model: Model) -> Model:
         for node in self.nodes:
             model = edit.add_mass(model, node, self._need("m"))[0]
-        return edit.refresh(model)
+        return model
 
     def at_reference(self, model: Model, f_test_hz) -> AddedMass:
         """1 % of the total mass."""
