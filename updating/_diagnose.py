@@ -210,12 +210,12 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
 
     # -- evidence; the most probable candidates cross-validated
     n_rows = (ne, ne * ns)
-    _, ranked, _ = evidence(short, base, n_b, n_rows, sigma2, mass, options.noise_freq)
+    _, ranked, _ = evidence(short, base, n_b, n_rows, sigma2, mass)
     top = [c for c in ranked if np.isfinite(c.result["cost"])][:options.cross_validate]
     say(f"cross-validating the {len(top)} most probable ({len(masks) - 1} folds, {elapsed()})")
     for c in top:
         cross_validate(fits, problem, c.ext, c.result, masks)
-    effects, ranked, summary = evidence(short, base, n_b, n_rows, sigma2, mass, options.noise_freq)
+    effects, ranked, summary = evidence(short, base, n_b, n_rows, sigma2, mass)
     best = ranked[0].effect if summary["outcome"] == "effect" else None
 
     # -- comparison at the baseline

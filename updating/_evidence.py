@@ -44,6 +44,7 @@ from ._residuals import Problem, rows
 BASELINE_SD = 3.0  # prior σ of the engineer's log-factors (the fits' ridge, see diagnose)
 DECISIVE = np.log(20.0)  # ln Bayes factor an effect needs over the baseline ("strong", Kass & Raftery 1995)
 TIE = 1.0  # ln Bayes factor below which two places of one kind explain the data equally
+UNEXPLAINED_CHI2 = 4.0  # χ² per row above which the baseline does not explain the data (residuals 2× noise)
 
 
 def _cost_parts(theta, problem: Problem, mask, ev):
@@ -167,8 +168,8 @@ def _lowered(before: float, after: float, n: int, *, or_kept: bool = False) -> b
     return after < before - band or (or_kept and before <= n + band and after <= n + band)
 
 
-def evidence(short: list[Candidate], base: dict, n_b: int, rows_: tuple[int, int], sigma2: float, mass: float,
-             noise_freq: float) -> tuple[list[dict], list[Candidate], dict]:
+def evidence(short: list[Candidate], base: dict, n_b: int, rows_: tuple[int, int], sigma2: float,
+             mass: float) -> tuple[list[dict], list[Candidate], dict]:
     """Rank the fitted candidates by posterior probability and test the best against the
     baseline; returns JSON rows (best first), the candidates in that order and a summary
     (``outcome``: "effect", "none_needed" or "unexplained"; ``noise_scale``; ``ties``).
@@ -247,9 +248,6 @@ def evidence(short: list[Candidate], base: dict, n_b: int, rows_: tuple[int, int
                "ties": [{k: e[k] for k in ("kind", "where", "nodes", "pids", "posterior", "log_evidence")}
                         for e in ties]}
     return effects, [short[i] for i in order], summary
-
-
-UNEXPLAINED_CHI2 = 4.0  # χ² per row above which the baseline does not explain the data (residuals 2× noise)
 
 
 def _aic(cost: float, k: int, n: int) -> float:
