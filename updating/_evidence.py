@@ -29,6 +29,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -114,8 +115,7 @@ def fit(fits: Fits, problem: Problem, ext: Extension, theta0) -> dict:
     """Fit one extension on all modes: θ, cost (frequency + shape), Δf, MAC, Jacobian J."""
     lam_e = np.asarray(problem.lam_e)
     try:
-        out = [np.asarray(o) if not isinstance(o, tuple) else tuple(np.asarray(x) for x in o)
-               for o in fits.solve(theta0, with_extension(problem, ext, np.ones(len(lam_e), bool)))]
+        out = jax.tree.map(np.asarray, fits.solve(theta0, with_extension(problem, ext, np.ones(len(lam_e), bool))))
     except RuntimeError as err:  # a trial step made the model non-finite: report, do not rank
         return {"theta": np.asarray(theta0), "cost": float("inf"), "freq_dev": np.full(len(lam_e), np.nan),
                 "mac": np.full(len(lam_e), np.nan), "error": str(err).splitlines()[0]}
@@ -212,8 +212,10 @@ def evidence(short: list[Candidate], base: dict, n_b: int, rows_: tuple[int, int
                                                           or_kept=True)),
         }
         cv_base = base["cv_freq"] + base["cv_shape"]
-        both = np.isfinite(base["heldout_freq_dev"]) & np.isfinite(res.get("heldout_freq_dev", np.nan))
-        rms_before, rms_after = rms_pct(base["heldout_freq_dev"][both]), rms_pct(res["heldout_freq_dev"][both]) if cv else None
+        rms_before, rms_after, both = rms_pct(base["heldout_freq_dev"]), None, None
+        if cv:  # over the modes paired with and without the effect: the numbers shown
+            both = np.isfinite(base["heldout_freq_dev"]) & np.isfinite(res["heldout_freq_dev"])
+            rms_before, rms_after = rms_pct(base["heldout_freq_dev"][both]), rms_pct(res["heldout_freq_dev"][both])
         checks["heldout_rms_not_higher"] = bool(cv and rms_after <= rms_before)
         effects.append({
             **c.effect.to_json(), "rank": len(effects) + 1,
@@ -225,7 +227,7 @@ def evidence(short: list[Candidate], base: dict, n_b: int, rows_: tuple[int, int
             "score": float(100 * (1 - (res["cv_freq"] + res["cv_shape"]) / cv_base)) if cv else None,
             "screen": float(c.screen) if np.isfinite(c.screen) else None,
             "chi2_per_row": float(chi2_row(res)),
-            "heldout_rms_freq_dev_pct_before": rms_pct(base["heldout_freq_dev"]) if not cv else rms_before,
+            "heldout_rms_freq_dev_pct_before": rms_before,
             "heldout_rms_freq_dev_pct_after": rms_after,
             "heldout_modes_compared": int(both.sum()) if cv else None,
             "heldout_mean_mac_before": _mean(base["heldout_mac"]),
