@@ -22,7 +22,7 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Float, Int
 
 import jaxfem
-from jaxfem import Model
+from jaxfem import STIFFNESS_BLOCKS, Model
 
 from ._deviations import _scalar
 
@@ -30,17 +30,15 @@ _BATCH = 16  # candidates per vmapped batch of the scan (bounds memory on large 
 
 
 def _stiffness_ids(model: Model) -> np.ndarray:
-    """Ids of the elements with stiffness, in the order beams, rods, springs, bushes."""
-    return np.concatenate(
-        [np.asarray(b.ids, dtype=np.int64) for b in (model.beams, model.rods, model.springs, model.bushes)]
-    )
+    """Ids of the elements with stiffness, in the order of :data:`jaxfem.STIFFNESS_BLOCKS`."""
+    return np.concatenate([np.asarray(getattr(model, b).ids, dtype=np.int64) for b in STIFFNESS_BLOCKS])
 
 
 def _with_k_scale(model: Model, factor: Float[Array, " nk"]) -> Model:
     """``model`` with each stiffness element's ``k_scale`` multiplied by ``factor`` (order of
     :func:`_stiffness_ids`)."""
     start = 0
-    for name in ("beams", "rods", "springs", "bushes"):
+    for name in STIFFNESS_BLOCKS:
         block = getattr(model, name)
         n = len(block.ids)
         new = block.k_scale * factor[start : start + n]

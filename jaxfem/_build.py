@@ -16,7 +16,7 @@ from ._assembly import finalize_dofs
 from ._constraints import _dof_map
 from ._grids import _axis, _by_id, _coincident, _coordinate_systems, _f64, _Grids, _ints, _orientation
 from ._model import Beams, Bushes, Masses, Model, Rods, Springs, require_float64
-from ._sections import _beam_sections, _materials, _rod_sections
+from ._sections import _beam_sections, _materials, _no_shell_sections, _no_shells, _rod_sections
 from .io import BulkData, Card
 
 
@@ -52,10 +52,13 @@ def build_model(bulk: BulkData, spc_set: int | None = None) -> Model:
         materials=materials,
         beam_sections=beam_sections,
         rod_sections=rod_sections,
+        shell_sections=_no_shell_sections(),
         beams=_beams(bulk, grids, properties, beam_rows),
         rods=_rods(bulk["CROD"], grids, properties, rod_rows),
         springs=_springs(bulk, grids, properties),
         bushes=_bushes(bulk["CBUSH"], grids, properties, frames),
+        quads=_no_shells(4),
+        trias=_no_shells(3),
         masses=_masses(bulk["CONM2"], grids),
         dofs=_dof_map(bulk, grids, spc_set),
         lumped=lumped,

@@ -15,7 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._assembly import finalize_dofs
-from ._model import COMPONENTS, Bushes, DofMap, Masses, Model, Springs
+from ._model import COMPONENTS, STRUCTURAL_BLOCKS, Bushes, DofMap, Masses, Model, Springs
 
 
 def _new_id(existing: np.ndarray, start: int) -> int:
@@ -81,10 +81,10 @@ def add_grid(model: Model, xyz: Sequence[float], node: int | None = None) -> tup
 
 
 def reconnect(model: Model, eids: Sequence[int], old: int, new: int) -> Model:
-    """Elements ``eids`` (beams, rods, bushes) attached to grid ``old`` are moved to grid ``new``."""
+    """Elements ``eids`` (beams, rods, bushes, shells) attached to grid ``old`` are moved to grid ``new``."""
     old_row, new_row = model.node_index([old, new])
     wanted = np.asarray(eids, dtype=np.int64)
-    for name in ("beams", "rods", "bushes"):
+    for name in STRUCTURAL_BLOCKS:
         block = getattr(model, name)
         hit = np.isin(block.ids, wanted)[:, None] & (block.nodes == old_row)
         if hit.any():

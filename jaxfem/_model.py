@@ -17,6 +17,11 @@ import numpy as np
 from jaxtyping import Array, Float, Int
 
 COMPONENTS = 6  # DoFs per grid: T1 T2 T3 R1 R2 R3 (Nastran components 1..6)
+# Element blocks of a Model that carry stiffness (k_scale), mass (m_scale), or that join
+# grids as structure (drawn, localised, edited).
+STIFFNESS_BLOCKS = ("beams", "rods", "springs", "bushes", "quads", "trias")
+MASS_BLOCKS = ("beams", "rods", "masses", "quads", "trias")
+STRUCTURAL_BLOCKS = ("beams", "rods", "bushes", "quads", "trias")
 
 
 def require_float64() -> None:
@@ -45,17 +50,29 @@ def _f64(x) -> Array:
     return jnp.asarray(x, dtype=jnp.float64)
 
 
-class Materials(eqx.Module):
-    """Isotropic materials (MAT1), one row per material id.
+MAT1, MAT2, MAT8 = 1, 2, 8  # Materials.kind
 
-    E, G in Pa; rho in kg/m³; nu dimensionless.
+
+class Materials(eqx.Module):
+    """Materials (MAT1, MAT2, MAT8), one row per material id; moduli in Pa, rho in kg/m³.
+
+    MAT1 (isotropic): E, G, nu; E2, G1z, G2z are 0 (shells take E, G in their place).
+    MAT8 (orthotropic, shells): E = E1, G = G12, nu = NU12, and E2, G1z, G2z (0 when
+    G1Z/G2Z are blank: transverse shear rigid). MAT2 (anisotropic, shells): the
+    plane-stress matrix Q = [[G11, G12, G13], [G12, G22, G23], [G13, G23, G33]]; as a
+    transverse-shear material (MID3) its upper 2 × 2 block. Q is 0 for MAT1 and MAT8.
     """
 
     ids: Int[np.ndarray, " nmat"]
+    kind: Int[np.ndarray, " nmat"]  # MAT1, MAT2 or MAT8
     E: Float[Array, " nmat"]
     G: Float[Array, " nmat"]
     nu: Float[Array, " nmat"]
     rho: Float[Array, " nmat"]
+    E2: Float[Array, " nmat"]
+    G1z: Float[Array, " nmat"]
+    G2z: Float[Array, " nmat"]
+    Q: Float[Array, "nmat 3 3"]
 
 
 class BeamSections(eqx.Module):
@@ -84,6 +101,58 @@ class RodSections(eqx.Module):
     A: Float[Array, " nsec"]
     J: Float[Array, " nsec"]
     nsm: Float[Array, " nsec"]
+
+
+class ShellSections(eqx.Module):
+    """Shell properties (PSHELL, PCOMP), one row per property id.
+
+    PSHELL: ``materials`` holds the rows of MID1 (membrane), MID2 (bending), MID3
+    (transverse shear), MID4 (membrane–bending coupling), −1 where blank; ``t`` the
+    thickness T [m], ``bending_ratio`` 12I/T³, ``shear_ratio`` TS/T. PCOMP
+    (``composite``): plies bottom to top (LAM = SYM already mirrored), ``ply_material``
+    rows (−1 pads), ``ply_t`` [m] and ``ply_theta`` [rad] from the element's material
+    axis, ``z0`` the bottom surface [m]; ``t`` is the sum of the ply thicknesses.
+    ``nsm`` in kg/m². ``membrane``, ``bending`` and ``shear`` scale the laminate's A,
+    D and transverse-shear matrix (updating factors, 1 by default; B is scaled by
+    √(membrane·bending)). ``shear_rigid``: no transverse-shear flexibility (blank
+    MID3, or MAT8 plies without G1Z/G2Z). See :func:`jaxfem.elements.laminate`.
+    """
+
+    ids: Int[np.ndarray, " nsec"]
+    composite: np.ndarray  # bool (nsec,)
+    shear_rigid: np.ndarray  # bool (nsec,)
+    materials: Int[np.ndarray, "nsec 4"]
+    ply_material: Int[np.ndarray, "nsec nply"]
+    t: Float[Array, " nsec"]
+    bending_ratio: Float[Array, " nsec"]
+    shear_ratio: Float[Array, " nsec"]
+    nsm: Float[Array, " nsec"]
+    z0: Float[Array, " nsec"]
+    ply_t: Float[Array, "nsec nply"]
+    ply_theta: Float[Array, "nsec nply"]
+    membrane: Float[Array, " nsec"]
+    bending: Float[Array, " nsec"]
+    shear: Float[Array, " nsec"]
+
+
+class Shells(eqx.Module):
+    """Shell elements of one shape: CQUAD4 (4 grids) or CTRIA3 (3 grids).
+
+    ``theta``: material axis 1 measured from the projected G1→G2 side about the element
+    normal [rad] (THETA, or MCID's x-axis projected); ``zoffs``: reference plane offset
+    along the normal [m]; ``t_ratio``: corner thickness T1..T4 over the property's T
+    (1 where blank).
+    """
+
+    ids: Int[np.ndarray, " n"]
+    pids: Int[np.ndarray, " n"]
+    section: Int[np.ndarray, " n"]  # row in ShellSections
+    nodes: Int[np.ndarray, "n nn"]
+    theta: Float[Array, " n"]
+    zoffs: Float[Array, " n"]
+    t_ratio: Float[Array, "n nn"]
+    k_scale: Float[Array, " n"]
+    m_scale: Float[Array, " n"]
 
 
 class Beams(eqx.Module):
@@ -169,14 +238,11 @@ class Viscoelastic(eqx.Module):
     The stiffness of the weighted elements is ``K_g·(1 + a·ln(f/f_ref))`` at frequency f
     (Hz): the modulus law ``E(f) = E0 (1 + a ln(f/f_ref))``, a straight line in log f as
     for visco-elastic materials in their transition region (Nashif, Jones & Henderson
-    1985, ch. 3). ``weights`` per stiffness block (beams, rods, springs, bushes): 1 for
+    1985, ch. 3). ``weights``: one array per block of :data:`STIFFNESS_BLOCKS`, 1 for
     elements of the layer, 0 elsewhere (traced, so candidate groups can be batched).
     """
 
-    beams: Float[Array, " nb"]
-    rods: Float[Array, " nr"]
-    springs: Float[Array, " ns"]
-    bushes: Float[Array, " nu"]
+    weights: tuple[Float[Array, " n"], ...]
     a: Float[Array, ""]
     f_ref: Float[Array, ""]
 
@@ -194,13 +260,17 @@ class Model(eqx.Module):
     materials: Materials
     beam_sections: BeamSections
     rod_sections: RodSections
+    shell_sections: ShellSections
     beams: Beams
     rods: Rods
     springs: Springs
     bushes: Bushes
+    quads: Shells
+    trias: Shells
     masses: Masses
     dofs: DofMap
     lumped: bool = eqx.field(static=True)  # PARAM COUPMASS: False = consistent mass
+    k6rot: float = eqx.field(static=True, default=100.0)  # PARAM K6ROT: shell drilling stiffness
     viscoelastic: Viscoelastic | None = None  # frequency-dependent stiffness, see jaxfem.modes
 
     def with_effect(self, effect) -> Model:
@@ -221,19 +291,24 @@ class Model(eqx.Module):
         return np.array([lookup[int(n)] for n in node_ids], dtype=np.int64)
 
     def segments(self) -> tuple[np.ndarray, np.ndarray]:
-        """Two-grid elements (beams, rods, bushes, springs between two grids) for drawing:
-        ``(rows (k, 2) of grid indices, element ids (k,))``; grounded springs left out."""
+        """Lines to draw: two-grid elements (beams, rods, bushes, springs between two grids)
+        and the edges of shells, ``(rows (k, 2) of grid indices, element ids (k,))``;
+        grounded springs left out."""
         rows, ids = [], []
-        for block in (self.beams, self.rods, self.bushes, self.springs):
-            n = np.asarray(block.nodes).reshape(-1, 2)
-            keep = (n >= 0).all(axis=1)
-            rows.append(n[keep])
-            ids.append(np.asarray(block.ids)[keep])
+        for block in (self.beams, self.rods, self.bushes, self.springs, self.quads, self.trias):
+            nodes = np.asarray(block.nodes)
+            nn = nodes.shape[1] if nodes.ndim == 2 else 2
+            edges = [(a, (a + 1) % nn) for a in range(nn)] if nn > 2 else [(0, 1)]
+            for a, b in edges:
+                n = nodes.reshape(-1, nn)[:, [a, b]]
+                keep = (n >= 0).all(axis=1)
+                rows.append(n[keep])
+                ids.append(np.asarray(block.ids)[keep])
         return np.concatenate(rows).astype(np.int64), np.concatenate(ids).astype(np.int64)
 
     def element_ids(self, pids: Sequence[int] | None = None) -> np.ndarray:
         """All element ids, or those whose property id is in ``pids`` (CONM2 has none)."""
-        blocks = [self.beams, self.rods, self.springs, self.bushes]
+        blocks = [getattr(self, name) for name in STIFFNESS_BLOCKS]
         ids = [b.ids[np.isin(b.pids, pids)] if pids is not None else b.ids for b in blocks]
         if pids is None:
             ids.append(self.masses.ids)
@@ -299,13 +374,11 @@ def correct(
         mask = block_masks(block.ids, groups)
         return getattr(block, field) * (1.0 + factors @ mask)
 
-    k_blocks = ("beams", "rods", "springs", "bushes")
-    m_blocks = ("beams", "rods", "masses")
-    for name in k_blocks:
+    for name in STIFFNESS_BLOCKS:
         block = getattr(model, name)
         block = eqx.tree_at(lambda b: b.k_scale, block, scaled(block, "k_scale", stiffness_groups, alpha))
         model = eqx.tree_at(lambda m: getattr(m, name), model, block)
-    for name in m_blocks:
+    for name in MASS_BLOCKS:
         block = getattr(model, name)
         block = eqx.tree_at(lambda b: b.m_scale, block, scaled(block, "m_scale", mass_groups, beta))
         model = eqx.tree_at(lambda m: getattr(m, name), model, block)

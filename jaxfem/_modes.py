@@ -24,7 +24,7 @@ from jaxtyping import Array, Float
 
 from ._assembly import assemble
 from ._eigen import DEGENERATE_RTOL, eigh
-from ._model import Model
+from ._model import STIFFNESS_BLOCKS, Model
 
 _NEWTON = 4  # Newton steps; quadratic convergence, |Δλ|/λ < 1e-12 after 3 for |a| ≤ 0.3
 
@@ -48,11 +48,9 @@ def modes(model: Model, n_modes: int, *, n_basis: int | None = None
     if n_b < n_modes:
         raise ValueError(f"n_basis = {n_b} < n_modes = {n_modes}")
     lam0, phi = eigh(K, M, n_b)
-    layer = eqx.tree_at(
-        lambda m: (m.beams.k_scale, m.rods.k_scale, m.springs.k_scale, m.bushes.k_scale), model,
-        (model.beams.k_scale * law.beams, model.rods.k_scale * law.rods,
-         model.springs.k_scale * law.springs, model.bushes.k_scale * law.bushes),
-    )
+    layer = model
+    for name, w in zip(STIFFNESS_BLOCKS, law.weights):
+        layer = eqx.tree_at(lambda m, name=name: getattr(m, name).k_scale, layer, getattr(model, name).k_scale * w)
     k_g = assemble(layer)[0]
     basis = _enrich(K, M, k_g, lam0, phi, n_modes)
     k_r, g, m_r = (basis.T @ a.matmul(basis) for a in (K, k_g, M))

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._grids import _by_id, _f64, _ints
-from ._model import BeamSections, Materials, RodSections
+from ._model import MAT1, BeamSections, Materials, RodSections, Shells, ShellSections
 from .io import BulkData, Card
 
 
@@ -40,7 +40,11 @@ def _materials(cards: list[Card]) -> tuple[Materials, dict[int, int]]:
         rows.append((E, G, nu, card["RHO"]))
     E, G, nu, rho = np.asarray(rows, dtype=np.float64).reshape(-1, 4).T
     ids = _ints([c.id for c in cards])
-    return Materials(ids=ids, E=_f64(E), G=_f64(G), nu=_f64(nu), rho=_f64(rho)), {int(m): i for i, m in enumerate(ids)}
+    n = len(ids)
+    zero = _f64(np.zeros(n))
+    materials = Materials(ids=ids, kind=np.full(n, MAT1, np.int64), E=_f64(E), G=_f64(G), nu=_f64(nu), rho=_f64(rho),
+                          E2=zero, G1z=zero, G2z=zero, Q=_f64(np.zeros((n, 3, 3))))
+    return materials, {int(m): i for i, m in enumerate(ids)}
 
 
 def _material(card: Card, mat_rows: dict[int, int]) -> int:
@@ -152,3 +156,18 @@ def _rod_sections(cards: list[Card], mat_rows: dict[int, int]) -> tuple[RodSecti
         nsm=_f64([c["NSM"] for c in cards]),
     )
     return sections, {int(p): i for i, p in enumerate(ids)}
+
+
+def _no_shell_sections() -> ShellSections:
+    e = _f64(np.zeros(0))
+    return ShellSections(
+        ids=_ints([]), composite=np.zeros(0, bool), shear_rigid=np.zeros(0, bool),
+        materials=_ints([], 4), ply_material=_ints([], 1), t=e, bending_ratio=e, shear_ratio=e, nsm=e, z0=e,
+        ply_t=_f64(np.zeros((0, 1))), ply_theta=_f64(np.zeros((0, 1))), membrane=e, bending=e, shear=e,
+    )
+
+
+def _no_shells(nn: int) -> Shells:
+    e = _f64(np.zeros(0))
+    return Shells(ids=_ints([]), pids=_ints([]), section=_ints([]), nodes=_ints([], nn), theta=e, zoffs=e,
+                  t_ratio=_f64(np.zeros((0, nn))), k_scale=e, m_scale=e)

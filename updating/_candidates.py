@@ -21,7 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxfem
-from jaxfem import Model
+from jaxfem import MASS_BLOCKS, STIFFNESS_BLOCKS, Model
 from jaxfem import _edit as edit
 
 from ._compiled import Compiled
@@ -148,10 +148,10 @@ def _element_jacobian_fn(theta, problem: Problem):
 
     def fn(uk, um):
         m = model0
-        for name, u in zip(("beams", "rods", "springs", "bushes"), uk):
+        for name, u in zip(STIFFNESS_BLOCKS, uk):
             k = getattr(m, name).k_scale
             m = eqx.tree_at(lambda x, name=name: getattr(x, name).k_scale, m, jnp.where(k == 0, u, k * (1 + u)))
-        for name, u in zip(("beams", "rods", "masses"), um):
+        for name, u in zip(MASS_BLOCKS, um):
             ms = getattr(m, name).m_scale
             m = eqx.tree_at(lambda x, name=name: getattr(x, name).m_scale, m, jnp.where(ms == 0, u, ms * (1 + u)))
         p = eqx.tree_at(lambda q: (q.values, q.parameterisation, q.extension), problem,
@@ -160,8 +160,8 @@ def _element_jacobian_fn(theta, problem: Problem):
         return _flat(jnp.zeros(0), p)
 
     structure = problem.structure.value
-    uk = tuple(jnp.zeros(len(getattr(structure, n).ids)) for n in ("beams", "rods", "springs", "bushes"))
-    um = tuple(jnp.zeros(len(getattr(structure, n).ids)) for n in ("beams", "rods", "masses"))
+    uk = tuple(jnp.zeros(len(getattr(structure, n).ids)) for n in STIFFNESS_BLOCKS)
+    um = tuple(jnp.zeros(len(getattr(structure, n).ids)) for n in MASS_BLOCKS)
     r = fn(uk, um)
     jk, jm = jax.jacfwd(fn, argnums=(0, 1))(uk, um)
     return r, jnp.concatenate(jk, axis=1), jnp.concatenate(jm, axis=1)
@@ -172,8 +172,8 @@ def _element_jacobian(problem: Problem, theta):
     scale (a dormant element: w.r.t. waking it at its reference value)."""
     r, jk, jm = Compiled(_element_jacobian_fn)(jnp.asarray(theta), problem)
     s = problem.structure.value
-    k_ids = np.concatenate([getattr(s, n).ids for n in ("beams", "rods", "springs", "bushes")])
-    m_ids = np.concatenate([getattr(s, n).ids for n in ("beams", "rods", "masses")])
+    k_ids = np.concatenate([getattr(s, n).ids for n in STIFFNESS_BLOCKS])
+    m_ids = np.concatenate([getattr(s, n).ids for n in MASS_BLOCKS])
     return np.asarray(r), np.asarray(jk), np.asarray(jm), k_ids, m_ids
 
 

@@ -190,7 +190,7 @@ class FrequencyDependentStiffness(AbstractGroupEffect):
     def apply(self, model: Model) -> Model:
         model, group = super().apply(model), self.elements(model).tolist()
         masks = [jnp.asarray(np.isin(getattr(model, b).ids, group), dtype=jnp.float64) for b in K_BLOCKS]
-        law = jaxfem.Viscoelastic(*masks, jnp.asarray(self.a or 0.0), jnp.asarray(self._need("f_ref_hz")))
+        law = jaxfem.Viscoelastic(tuple(masks), jnp.asarray(self.a or 0.0), jnp.asarray(self._need("f_ref_hz")))
         return eqx.tree_at(lambda m: m.viscoelastic, model, law, is_leaf=lambda x: x is None)
 
     def at_reference(self, model: Model, f_test_hz) -> FrequencyDependentStiffness:

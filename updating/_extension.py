@@ -15,8 +15,9 @@ from jaxtyping import Array, Float
 import jaxfem
 from jaxfem import Model
 
-K_BLOCKS = ("beams", "rods", "springs", "bushes")
-M_BLOCKS = ("beams", "rods", "masses")
+from jaxfem import MASS_BLOCKS as M_BLOCKS
+from jaxfem import STIFFNESS_BLOCKS as K_BLOCKS
+
 _THETA_MAX = 25.0  # |log-factor| beyond which a trial step is clipped (e^25 ≈ 7e10)
 
 
@@ -59,7 +60,7 @@ class Extension(eqx.Module):
                                 blk.m_scale * jnp.exp(theta[0] * log) + add * s)
         if self.visco:
             a = self.a0 + jnp.expm1(jnp.minimum(theta[1], 1.0))  # a step of at most e − 1
-            law = jaxfem.Viscoelastic(*self.k_log, a, self.f_ref)
+            law = jaxfem.Viscoelastic(self.k_log, a, self.f_ref)
             model = eqx.tree_at(lambda m: m.viscoelastic, model, law, is_leaf=lambda x: x is None)
         return model
 

@@ -17,7 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxfem
-from jaxfem import Model
+from jaxfem import STIFFNESS_BLOCKS, STRUCTURAL_BLOCKS, Model
 
 from ._compiled import Compiled
 from ._residuals import Problem, residuals
@@ -113,7 +113,7 @@ def _element_dofs(model: Model):
     """(element block, solved-DoF indices per element) for blocks with stiffness."""
     from jaxfem._assembly import _node_transform
 
-    for block in (model.beams, model.rods, model.bushes):
+    for block in (getattr(model, name) for name in STRUCTURAL_BLOCKS):
         if len(block.ids):
             yield block, _node_transform(model, block.nodes)[1]
 
@@ -121,7 +121,7 @@ def _element_dofs(model: Model):
 def group_scores(element_scores: dict[int, float], model: Model) -> dict[int, float]:
     """Mean element score per property id, normalised so that the largest is 1, best first."""
     pid_of = {}
-    for block in (model.beams, model.rods, model.springs, model.bushes):
+    for block in (getattr(model, name) for name in STIFFNESS_BLOCKS):
         pid_of.update({int(e): int(p) for e, p in zip(block.ids, block.pids)})
     sums: dict[int, list[float]] = {}
     for eid, v in element_scores.items():

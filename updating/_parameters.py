@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
@@ -249,6 +250,13 @@ def _element_group(model: Model, p: Parameter) -> np.ndarray:
                       np.asarray(p.eids, dtype=np.int64))
 
 
+def _copy_material(mats, row: int):
+    """The material table with row ``row`` appended again, under the id −(its id)."""
+    copy = jax.tree.map(lambda a: a[row : row + 1], mats)
+    copy = eqx.tree_at(lambda m: m.ids, copy, -copy.ids)
+    return jax.tree.map(lambda a, b: (np if isinstance(a, np.ndarray) else jnp).concatenate([a, b]), mats, copy)
+
+
 def _private_materials(model: Model, pids: Sequence[int]) -> Model:
     """Give the sections of ``pids`` their own material rows (copies) if they share one."""
     mats = model.materials
@@ -263,15 +271,7 @@ def _private_materials(model: Model, pids: Sequence[int]) -> Model:
             targets = sum(int(np.sum(getattr(model, n).material[_rows(getattr(model, n).ids, pids)]
                                      == material[row])) for n in ("beam_sections", "rod_sections"))
             if users > targets:  # shared with a property outside the target: copy it
-                new_row = len(mats.ids)
-                mats = type(mats)(
-                    ids=np.append(mats.ids, -int(mats.ids[material[row]])),
-                    E=jnp.append(mats.E, mats.E[material[row]]),
-                    G=jnp.append(mats.G, mats.G[material[row]]),
-                    nu=jnp.append(mats.nu, mats.nu[material[row]]),
-                    rho=jnp.append(mats.rho, mats.rho[material[row]]),
-                )
-                material[row] = new_row
+                material[row], mats = len(mats.ids), _copy_material(mats, material[row])
                 changed = True
         sections[name] = material
     if not changed:

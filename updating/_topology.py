@@ -8,7 +8,7 @@ from collections.abc import Iterator
 import jax.numpy as jnp
 import numpy as np
 
-from jaxfem import Model
+from jaxfem import STIFFNESS_BLOCKS, STRUCTURAL_BLOCKS, Model
 
 
 def _own(model: Model, row: int) -> set[int]:
@@ -42,8 +42,8 @@ def constrained_components(model: Model, node: int) -> list[int]:
 
 
 def _structural(model: Model) -> Iterator[tuple[str, np.ndarray, np.ndarray, np.ndarray]]:
-    """(block name, element ids, pids, node rows) of beams, rods and bushes."""
-    for name in ("beams", "rods", "bushes"):
+    """(block name, element ids, pids, node rows) of beams, rods, bushes and shells."""
+    for name in STRUCTURAL_BLOCKS:
         b = getattr(model, name)
         if len(b.ids):
             yield name, b.ids, b.pids, b.nodes
@@ -60,13 +60,13 @@ def elements_at(model: Model, node: int) -> dict[int, int]:
 
 
 def structural_pids(model: Model) -> list[int]:
-    """Property ids of beams and rods."""
-    return sorted({int(p) for b in (model.beams, model.rods) for p in b.pids})
+    """Property ids of beams, rods and shells."""
+    return sorted({int(p) for b in (model.beams, model.rods, model.quads, model.trias) for p in b.pids})
 
 
 def stiffness_pids(model: Model) -> list[int]:
-    """Property ids of beams, rods, bushes and springs (pid 0, an added element, excluded)."""
-    return sorted({int(p) for b in (model.beams, model.rods, model.bushes, model.springs) for p in b.pids if p > 0})
+    """Property ids of the elements with stiffness (pid 0, an added element, excluded)."""
+    return sorted({int(p) for name in STIFFNESS_BLOCKS for p in getattr(model, name).pids if p > 0})
 
 
 def halves(model: Model, pid: int) -> list[tuple[np.ndarray, str]]:
