@@ -20,7 +20,7 @@ from ._sections import _beam_sections, _materials, _no_shell_sections, _no_shell
 from .io import BulkData, Card
 
 
-def build_model(bulk: BulkData, spc_set: int | None = None) -> Model:
+def build_model(bulk: BulkData, spc_set: int | None = None, mpc_set: int | None = None) -> Model:
     """Model pytree of the bulk data (SI units), with DoF map and auto-SPC applied.
 
     **Arguments:**
@@ -29,6 +29,8 @@ def build_model(bulk: BulkData, spc_set: int | None = None) -> Model:
       ``UserWarning`` (see :meth:`BulkData.report`).
     - ``spc_set``: SPC/SPC1 set id to apply; ``None`` takes the only one in the file
       (an error if there are several). GRID PS constraints always apply.
+    - ``mpc_set``: MPC set id to apply, chosen as ``spc_set``. RBE2 and RBE3 always
+      apply; dependent DoFs are eliminated (see :func:`jaxfem._constraints._dof_map`).
 
     **Returns:** :class:`jaxfem.Model` with grids sorted by id, element blocks sorted by
     element id, ``k_scale = m_scale = 1``, lumped mass unless PARAM COUPMASS > 0
@@ -60,7 +62,7 @@ def build_model(bulk: BulkData, spc_set: int | None = None) -> Model:
         quads=_no_shells(4),
         trias=_no_shells(3),
         masses=_masses(bulk["CONM2"], grids),
-        dofs=_dof_map(bulk, grids, spc_set),
+        dofs=_dof_map(bulk, grids, spc_set, mpc_set),
         lumped=lumped,
     )
     return finalize_dofs(model)

@@ -1,9 +1,12 @@
-"""Constraints of bulk data and the DoF map: GRID PS, SPC, SPC1, RBE2.
+"""Constraints of bulk data and the DoF map: GRID PS, SPC, SPC1, RBE2, RBE3, MPC.
 
 Constrained (grid, component) pairs come from GRID PS and the selected SPC/SPC1 set; an
-RBE2 makes the CM components of its GM grids rigid-body functions of its GN grid (MSC
-QRG, RBE2), chains followed. :func:`_dof_map` numbers the remaining DoFs and writes
-every node's components as combinations of them (:class:`jaxfem.DofMap`).
+RBE2 makes the CM components of its GM grids rigid-body functions of its GN grid, an
+RBE3 the REFC components of its reference grid weighted least-squares averages of its
+independent grids, an MPC of the selected set its first term a combination of the
+others (MSC QRG, RBE2, RBE3, MPC); chains are followed. :func:`_dof_map` numbers the
+remaining DoFs and writes every node's components as combinations of them
+(:class:`jaxfem.DofMap`).
 """
 
 from __future__ import annotations
@@ -14,25 +17,42 @@ from ._grids import _by_id, _Grids, _ints
 from ._model import COMPONENTS, DofMap
 from .io import BulkData, BulkDataError, Card
 
+_SINGULAR_RTOL = 1e-10  # RBE3: eigenvalue of the scaled GᵀWG below rtol·largest = singular
+
+# One term of a dependent DoF: ((grid, component), coefficient, field of the card it comes from)
+_Term = tuple[tuple[int, int], float, str]
+
 
 def _components(code: int) -> list[int]:
     return [int(d) for d in str(code)]
 
 
+def _selected(bulk: BulkData, names: tuple[str, ...], chosen: int | None, argument: str) -> int | None:
+    """The set id of the SPC or MPC cards to apply: ``chosen``, or the only one in the file."""
+    cards = [c for name in names for c in bulk[name]]
+    sets = sorted({c["SID"] for c in cards})
+    kind = names[0]
+    if chosen is None and len(sets) > 1:
+        if kind == "SPC":
+            raise BulkDataError(f"{bulk.source}: several SPC sets {sets}; choose one with spc_set")
+        first: dict[int, Card] = {}
+        for card in sorted(cards, key=lambda c: c.line):
+            first.setdefault(card["SID"], card)
+        where = ", ".join(f"{kind} {s} at {first[s].file}:{first[s].line}" for s in sets)
+        raise first[sets[1]].error("SID", f"several {kind} sets {sets} ({where}); choose one with {argument}")
+    if chosen is not None and chosen not in sets:
+        raise BulkDataError(f"{bulk.source}: {kind} set {chosen} is not in the file (sets: {sets})")
+    return chosen if chosen is not None else (sets[0] if sets else None)
+
+
 def _constraints(bulk: BulkData, grids: _Grids, spc_set: int | None) -> dict[tuple[int, int], Card]:
     """(grid, component) -> constraining card: GRID PS and the selected SPC/SPC1 set."""
-    spcs = bulk["SPC"] + bulk["SPC1"]
-    sets = sorted({c["SID"] for c in spcs})
-    if spc_set is None and len(sets) > 1:
-        raise BulkDataError(f"{bulk.source}: several SPC sets {sets}; choose one with spc_set")
-    if spc_set is not None and spc_set not in sets:
-        raise BulkDataError(f"{bulk.source}: SPC set {spc_set} is not in the file (sets: {sets})")
-    selected = spc_set if spc_set is not None else (sets[0] if sets else None)
+    selected = _selected(bulk, ("SPC", "SPC1"), spc_set, "spc_set")
     fixed: dict[tuple[int, int], Card] = {}
     for card in grids.cards:
         for c in _components(card["PS"]) if card["PS"] else ():
             fixed[(card.id, c)] = card
-    for card in spcs:
+    for card in bulk["SPC"] + bulk["SPC1"]:
         if card["SID"] != selected:
             continue
         if card.name == "SPC" and card["D"] != 0.0:
@@ -44,17 +64,128 @@ def _constraints(bulk: BulkData, grids: _Grids, spc_set: int | None) -> dict[tup
     return fixed
 
 
-def _dof_map(bulk: BulkData, grids: _Grids, spc_set: int | None) -> DofMap:
+def _cross_rows(r: np.ndarray) -> np.ndarray:
+    """S with (θ × r)_c = Σ_j S[c, j] θ_j, i.e. S[c] = r × e_c."""
+    return np.array([[0.0, r[2], -r[1]], [-r[2], 0.0, r[0]], [r[1], -r[0], 0.0]])
+
+
+def _rbe2_terms(card: Card, grids: _Grids, g: int, c: int) -> list[_Term]:
+    """u_gc = u_mc + Σ_j S[c, j] θ_mj (translations, r = x_g − x_m), θ_gc = θ_mc."""
+    m = card["GN"]
+    terms: list[_Term] = [((m, c), 1.0, "GN")]
+    if c <= 3:
+        s = _cross_rows(grids.xyz[grids.row[g]] - grids.xyz[grids.row[m]])
+        terms += [((m, 4 + j), float(s[c - 1, j]), "GN") for j in range(3) if s[c - 1, j] != 0.0]
+    return terms
+
+
+def _describe(v: np.ndarray, x_ref: np.ndarray) -> str:
+    """A rigid-body motion [u; θ] of the reference grid in words, for messages."""
+
+    def fmt(x: np.ndarray) -> str:
+        return ", ".join(f"{float(y):.3g}" for y in np.where(np.abs(x) < 1e-9, 0.0, x) + 0.0)
+
+    t, a = v[:3], v[3:]
+    if np.linalg.norm(a) <= 1e-8 * np.linalg.norm(t):
+        t = t / np.linalg.norm(t)
+        return f"translation along [{fmt(t * np.sign(t[np.argmax(np.abs(t))]))}]"
+    scale = np.linalg.norm(a) * np.sign(a[np.argmax(np.abs(a))])
+    t, a = t / scale, a / scale
+    if abs(t @ a) > 1e-8 * max(np.linalg.norm(t), 1.0):
+        return f"rotation [{fmt(a)}] with translation [{fmt(t)}]"
+    return f"rotation about [{fmt(a)}] through ({fmt(x_ref + np.cross(a, t))})"  # u = θ × (x_ref − p)
+
+
+def _rbe3_matrix(card: Card, grids: _Grids) -> tuple[np.ndarray, list[tuple[int, int, str]]]:
+    """T (6 × m) with [u_ref; θ_ref] = T u_m over the independent (grid, component, field) list.
+
+    T = (GᵀWG)⁻¹GᵀW (MSC QRG, RBE3): G stacks one rigid-body row per independent
+    component, W = diag(WT, WT·Lc² for rotations), Lc = mean |x_i − x_ref|. Solved in
+    the scaled unknowns [u_ref; Lc·θ_ref] so that the singularity test has no units.
+    """
+    ref = grids(card, "REFGRID")
+    entries: list[tuple[int, int, str]] = []
+    weights: list[float] = []
+    for k, (weight, code, members) in enumerate(card["GROUPS"], 1):
+        for j, g in enumerate(members, 1):
+            key = f"G{k},{j}"
+            grids(card, key, g)
+            if g == card["REFGRID"]:
+                raise card.error(key, f"grid {g} is the reference grid REFGRID and cannot also be an independent grid")
+            for c in _components(code):
+                entries.append((g, c, key))
+                weights.append(weight)
+    offsets = {g: grids.xyz[grids.row[g]] - grids.xyz[ref] for g, _, _ in entries}
+    lc = float(np.mean([np.linalg.norm(r) for r in offsets.values()]))
+    scale = lc if lc > 0.0 else 1.0
+    g_rows = np.zeros((len(entries), 6))
+    w = np.array(weights)
+    for n, (g, c, _) in enumerate(entries):
+        if c <= 3:  # u_gc = e_c·u_ref + (r × e_c)·θ_ref
+            g_rows[n, c - 1] = 1.0
+            g_rows[n, 3:] = _cross_rows(offsets[g])[c - 1] / scale
+        else:  # θ_gc = e_c·θ_ref, measured as Lc·θ with weight WT·Lc²/scale² (WT, or 0 if Lc = 0)
+            g_rows[n, c - 1] = 1.0
+            w[n] *= (lc / scale) ** 2
+    a = g_rows.T @ (w[:, None] * g_rows)
+    eig, vec = np.linalg.eigh(a)
+    null = eig <= _SINGULAR_RTOL * max(eig[-1], np.finfo(float).tiny)
+    if null.any():
+        unscale = np.array([1.0, 1.0, 1.0] + [1.0 / scale] * 3)
+        motions = "; ".join(_describe(unscale * v, grids.xyz[ref]) for v in vec[:, null].T)
+        raise card.error(
+            "GROUPS",
+            f"the independent DoFs do not determine the rigid-body motion of REFGRID {card['REFGRID']} "
+            f"(GᵀWG is singular; undetermined: {motions}); add translations (123) of independent grids "
+            "that are not all on one line through it, or their rotations (456)",
+        )
+    t = np.linalg.solve(a, g_rows.T * w)  # scaled: [u_ref; Lc θ_ref] = t [u; Lc θ]
+    measured = np.array([1.0 if c <= 3 else scale for _, c, _ in entries])
+    t = t * measured / np.array([1.0, 1.0, 1.0, scale, scale, scale])[:, None]
+    return t, entries
+
+
+def _dof_map(bulk: BulkData, grids: _Grids, spc_set: int | None, mpc_set: int | None = None) -> DofMap:
     """Independent DoFs and the map ``u[node, c] = coef[node, c] @ u_solved[index[node]]``.
 
     Independent DoFs are the (grid, component) pairs, in ascending order, that are
-    neither constrained (SPC, SPC1, GRID PS) nor RBE2-dependent. An RBE2 makes the CM
-    components of each GM grid rigid-body functions of its GN grid (MSC QRG, RBE2):
-    translations u_s = u_m + θ_m × (x_s − x_m), rotations θ_s = θ_m; chains (a GN that
-    is itself dependent) are followed to independent DoFs.
+    neither constrained (SPC, SPC1, GRID PS) nor dependent (MSC QRG, per card):
+
+    - RBE2: the CM components of each GM grid s are rigid-body functions of the GN grid
+      m: translations u_s = u_m + θ_m × (x_s − x_m), rotations θ_s = θ_m.
+    - RBE3: the REFC components of REFGRID are the weighted least-squares rigid-body
+      motion of the independent components. With r_i = x_i − x_ref, each component c
+      of grid i with weight w gives a row of G (m × 6): u_ic = e_c·u_ref + (r_i × e_c)·θ_ref
+      (c = 1..3), θ_ic = e_c·θ_ref (c = 4..6); W = diag(w for translations, w·Lc² for
+      rotations), Lc = mean |r_i|. Then [u_ref; θ_ref] = (GᵀWG)⁻¹GᵀW u_m and the REFC
+      rows of that 6 × m matrix are the dependent rows. A singular GᵀWG (one grid or
+      grids on one line with translations only) is an error.
+    - MPC (set ``mpc_set``): Σ A_i u_GiCi = 0 with the first term dependent,
+      u_G1C1 = −Σ_{i≥2} (A_i/A1) u_GiCi.
+
+    The terms of a dependent DoF may themselves be dependent or constrained: chains are
+    followed to independent DoFs (constrained ones contribute zero); loops and a DoF
+    dependent on two cards are located errors. ``spc_set``/``mpc_set``: the set ids to
+    apply; ``None`` takes the only set in the file (an error if there are several).
     """
     fixed = _constraints(bulk, grids, spc_set)
-    dependent: dict[tuple[int, int], tuple[Card, int]] = {}
+    dependent: dict[tuple[int, int], tuple[Card, list[_Term]]] = {}
+
+    def depend(card: Card, key: str, g: int, c: int, terms: list[_Term]) -> None:
+        if (g, c) in fixed:
+            other = fixed[(g, c)]
+            raise card.error(
+                key, f"grid {g} component {c} is both {card.name}-dependent and constrained by "
+                f"{other.name} at {other.file}:{other.line}",
+            )
+        if (g, c) in dependent:
+            other = dependent[(g, c)][0]
+            raise card.error(
+                key,
+                f"grid {g} component {c} is already dependent on {other.name} {other.id} at {other.file}:{other.line}",
+            )
+        dependent[(g, c)] = (card, terms)
+
     for card in _by_id(bulk["RBE2"]):
         grids(card, "GN")
         for g in card["GM"]:
@@ -62,19 +193,21 @@ def _dof_map(bulk: BulkData, grids: _Grids, spc_set: int | None) -> DofMap:
             if g == card["GN"]:
                 raise card.error("GM", f"grid {g} is both the independent grid GN and a dependent grid")
             for c in _components(card["CM"]):
-                if (g, c) in fixed:
-                    other = fixed[(g, c)]
-                    raise card.error(
-                        "CM", f"grid {g} component {c} is both RBE2-dependent and constrained by "
-                        f"{other.name} at {other.file}:{other.line}",
-                    )
-                if (g, c) in dependent:
-                    other = dependent[(g, c)][0]
-                    raise card.error(
-                        "CM",
-                        f"grid {g} component {c} is already dependent on RBE2 {other.id} at {other.file}:{other.line}",
-                    )
-                dependent[(g, c)] = (card, card["GN"])
+                depend(card, "CM", g, c, _rbe2_terms(card, grids, g, c))
+    for card in _by_id(bulk["RBE3"]):
+        t, entries = _rbe3_matrix(card, grids)
+        for c in _components(card["REFC"]):
+            terms = [((g, e), float(a), key) for (g, e, key), a in zip(entries, t[c - 1]) if a != 0.0]
+            depend(card, "REFC", card["REFGRID"], c, terms)
+    mpc = _selected(bulk, ("MPC",), mpc_set, "mpc_set")
+    for card in bulk["MPC"]:
+        if card["SID"] != mpc:
+            continue
+        for k, (g, _, _) in enumerate(card["TERMS"], 1):
+            grids(card, f"G{k}", g)
+        (g1, c1, a1), *others = card["TERMS"]
+        terms = [((g, c), -a / a1, f"G{k}") for k, (g, c, a) in enumerate(others, 2) if a != 0.0]
+        depend(card, "G1", g1, c1, terms)
 
     labels = [
         (int(g), c)
@@ -85,25 +218,31 @@ def _dof_map(bulk: BulkData, grids: _Grids, spc_set: int | None) -> DofMap:
     number = {label: i for i, label in enumerate(labels)}
     rows: dict[tuple[int, int], dict[int, float]] = {}
 
-    def row(g: int, c: int, chain: tuple[int, ...] = ()) -> dict[int, float]:
-        """Coefficients of (grid g, component c) on the independent DoFs."""
+    def row(g: int, c: int, chain: tuple[tuple[tuple[int, int], str], ...] = ()) -> dict[int, float]:
+        """Coefficients of (grid g, component c) on the independent DoFs; ``chain`` holds
+        the dependent DoFs being expanded and the field each was followed through."""
         if (g, c) in rows:
             return rows[(g, c)]
         if (g, c) in number:
             return {number[(g, c)]: 1.0}
         if (g, c) in fixed:
             return {}
-        card, m = dependent[(g, c)]
-        if card.id in chain:
-            raise card.error("GN", f"RBE2 elements depend on each other in a loop {chain + (card.id,)}")
-        out = dict(row(m, c, chain + (card.id,)))
-        if c <= 3:  # (θ × r)_c = Σ_j S[c, j] θ_j with r = x_s − x_m
-            r = grids.xyz[grids.row[g]] - grids.xyz[grids.row[m]]
-            s = np.array([[0.0, r[2], -r[1]], [-r[2], 0.0, r[0]], [r[1], -r[0], 0.0]])
-            for j in range(3):
-                if s[c - 1, j] != 0.0:
-                    for dof, value in row(m, 4 + j, chain + (card.id,)).items():
-                        out[dof] = out.get(dof, 0.0) + s[c - 1, j] * value
+        card, terms = dependent[(g, c)]
+        visited = [dof for dof, _ in chain]
+        if (g, c) in visited:
+            loop = visited[visited.index((g, c)):] + [(g, c)]
+            path = " -> ".join(
+                f"{other.name} {other.id} at {other.file}:{other.line} (grid {d[0]} component {d[1]})"
+                for d in loop
+                for other in (dependent[d][0],)
+            )
+            raise card.error(
+                chain[visited.index((g, c))][1], f"rigid elements/MPCs depend on each other in a loop: {path}"
+            )
+        out: dict[int, float] = {}
+        for (h, e), a, key in terms:
+            for dof, value in row(h, e, chain + (((g, c), key),)).items():
+                out[dof] = out.get(dof, 0.0) + a * value
         rows[(g, c)] = out
         return out
 

@@ -219,8 +219,8 @@ class Masses(eqx.Module):
 class DofMap(eqx.Module):
     """Map from the 6 components of every grid to the independent (solved) DoFs.
 
-    Single-point constraints remove components; RBE2 makes dependent components
-    rigid-body combinations of the independent node's DoFs (constraint elimination).
+    Single-point constraints remove components; RBE2, RBE3 and MPC make dependent
+    components combinations of independent DoFs (constraint elimination).
     ``u[node, c] = coef[node, c] @ u_solved[index[node]]``; index == n_dof is padding.
     """
 

@@ -31,7 +31,9 @@ Cards (values keyed by QRG field names; see ``jaxfem.io._cards._PARSERS``) and w
   values, footer K1/K2; tapered stations, NSI, CW, M, N refused), PROD, MAT1;
 - CONM2 (CID 0/blank or -1), CELAS1 + PELAS (two per card, split), CELAS2 (a grounded
   end has G and C None), CBUSH (GB required, OCID -1/blank) + PBUSH (rows K, B, GE, RCV);
-- RBE2 (``GM`` tuple), SPC (one card per G/C/D triplet), SPC1 (``G`` tuple, THRU), PARAM.
+- RBE2 (``GM`` tuple), RBE3 (``GROUPS`` of (WT, C, grids); UM refused, ALPHA kept
+  unused), MPC (``TERMS`` of (G, C, A), single components 1..6, A1 ≠ 0), SPC (one card
+  per G/C/D triplet), SPC1 (``G`` tuple, THRU), PARAM.
 
 Here the entry points; the result types are in :mod:`jaxfem.io._bulkdata`, lines and
 fields in :mod:`jaxfem.io._fields`, the card readers in :mod:`jaxfem.io._cards`.

@@ -2,7 +2,7 @@
 
 One parser per card name (``_PARSERS``): fixed layouts from a schema with a check of the
 values (GRID, CORD2R, CBAR, CBEAM, CROD, PBAR, PROD, MAT1, CONM2, CELAS1, CELAS2, CBUSH),
-and the variable layouts read field by field (PELAS, SPC, SPC1, RBE2, PARAM, PBARL,
+and the variable layouts read field by field (PELAS, SPC, SPC1, RBE2, RBE3, MPC, PARAM, PBARL,
 PBEAM, PBUSH); what Nastran allows but the model does not support is refused with a
 located :class:`BulkDataError` (MSC Nastran QRG, per card). :func:`_check_unique` refuses
 two cards with one id in the same id space (elements, properties, materials, ...).
@@ -215,6 +215,92 @@ def _rbe2(raw: _Raw) -> list[Card]:
     return [raw.card(values, positions)]
 
 
+def _rbe3(raw: _Raw) -> list[Card]:
+    """RBE3: EID, blank, REFGRID, REFC, then weight groups WTi, Ci, Gi,1, Gi,2, ...
+
+    A real starts a group, the field after it is the group's component code, the
+    integers after that its grids (blanks skipped). Then optionally the word ``UM``
+    (user-chosen dependent DoFs: refused) and the word ``ALPHA`` with ALPHA and TREF
+    (kept, unused). ``GROUPS`` = ((WT, C, (grids...)), ...); positions ``WTi``, ``Ci``,
+    ``Gi,j`` locate messages.
+    """
+    values, positions = _read(raw, (_id("EID"), None, _id("REFGRID"), ("REFC", "dof", _REQUIRED)))
+    groups: list[tuple[float, int, tuple[int, ...]]] = []
+    i = 4
+    while i < len(raw.texts) and not _WORD.fullmatch(raw.text(i).upper()):
+        if not raw.text(i):
+            i += 1
+            continue
+        k = len(groups) + 1
+        weight = raw.get(i, f"WT{k}", "real")
+        if weight <= 0.0:
+            raise raw.error(i, f"WT{k}", f"weight must be > 0, got {weight}")
+        component = raw.get(i + 1, f"C{k}", "dof", _REQUIRED)
+        positions.update({f"WT{k}": i, f"C{k}": i + 1})
+        grids: list[int] = []
+        i += 2
+        while i < len(raw.texts) and (not raw.text(i) or _INT.fullmatch(raw.text(i))):
+            if raw.text(i):
+                key = f"G{k},{len(grids) + 1}"
+                grids.append(raw.get(i, key, "id"))
+                positions[key] = i
+            i += 1
+        if not grids:
+            raise raw.error(positions[f"C{k}"] + 1, f"G{k},1", "a weight group needs at least one grid")
+        groups.append((weight, component, tuple(grids)))
+    if not groups:
+        raise raw.error(4, "WT1", "required field is blank (an RBE3 needs at least one weight group)")
+    word = raw.text(i).upper()
+    if word == "UM":
+        raise raw.error(i, "UM", "UM (user-chosen dependent DoFs) is not supported")
+    if word and word != "ALPHA":
+        raise raw.error(i, None, f"expected a weight, UM or ALPHA, got {raw.text(i)!r}")
+    values.update(GROUPS=tuple(groups), ALPHA=0.0, TREF=0.0)
+    positions["GROUPS"] = 4
+    if word:
+        values.update(ALPHA=raw.get(i + 1, "ALPHA", "real", 0.0), TREF=raw.get(i + 2, "TREF", "real", 0.0))
+        positions.update(ALPHA=i + 1, TREF=i + 2)
+        i += 3
+    raw.end(i)
+    return [raw.card(values, positions)]
+
+
+def _mpc(raw: _Raw) -> list[Card]:
+    """MPC: SID, then terms (Gi, Ci, Ai): two on the first row (fields 3-8), two on each
+    continuation row (fields 3-8, field 2 blank); blank terms after the first skipped.
+
+    ``TERMS`` = ((G, C, A), ...); the first term is the dependent DoF (MSC QRG, MPC):
+    A1 ≠ 0, C a single component 1..6 (scalar points are not supported), A blank = 0.0.
+    """
+    values, positions = _read(raw, (_id("SID"),))
+    terms: list[tuple[int, int, float]] = []
+    for row in range(0, max(len(raw.texts), 8), 8):
+        if row:
+            raw.blank(row)
+        raw.blank(row + 7)
+        for start in (row + 1, row + 4):
+            if terms and not any(raw.text(k) for k in range(start, start + 3)):
+                continue
+            k = len(terms) + 1
+            term, places = _read(raw, (_id(f"G{k}"), (f"C{k}", "int", _REQUIRED), _re(f"A{k}")), start)
+            g, c, a = term.values()
+            if not 1 <= c <= 6:
+                raise raw.error(
+                    start + 1, f"C{k}", f"component must be one of 1..6 (scalar points are not supported), got {c}"
+                )
+            if k == 1 and a == 0.0:
+                raise raw.error(start + 2, "A1", "A1 must be nonzero (the coefficient of the dependent DoF)")
+            if k > 1 and (g, c) == terms[0][:2]:
+                raise raw.error(
+                    start, f"G{k}", f"grid {g} component {c} is the dependent DoF (G1, C1) and cannot be a term again"
+                )
+            terms.append((g, c, a))
+            positions.update(places)
+    values["TERMS"] = tuple(terms)
+    positions["TERMS"] = 1
+    return [raw.card(values, positions)]
+
+
 def _param(raw: _Raw) -> list[Card]:
     """PARAM: name and up to two values of any type."""
     values, positions = _read(raw, (("N", "word", _REQUIRED), ("V1", "any", None), ("V2", "any", None)))
@@ -376,6 +462,8 @@ _PARSERS: dict[str, Callable[[_Raw], list[Card]]] = {
     ),
     "PBUSH": _pbush,
     "RBE2": _rbe2,
+    "RBE3": _rbe3,
+    "MPC": _mpc,
     "SPC": _spc,
     "SPC1": _spc1,
     "PARAM": _param,
@@ -386,7 +474,7 @@ _PARSERS: dict[str, Callable[[_Raw], list[Card]]] = {
 _ID_SPACES = {
     "grid": ("GRID",),
     "coordinate system": ("CORD2R",),
-    "element": ("CBAR", "CBEAM", "CROD", "CELAS1", "CELAS2", "CBUSH", "CONM2", "RBE2"),
+    "element": ("CBAR", "CBEAM", "CROD", "CELAS1", "CELAS2", "CBUSH", "CONM2", "RBE2", "RBE3"),
     "property": ("PBAR", "PBARL", "PBEAM", "PROD", "PELAS", "PBUSH"),
     "material": ("MAT1",),
     "PARAM": ("PARAM",),
