@@ -20,9 +20,12 @@ from .elements import (
     beam_stiffness,
     bush_stiffness,
     conm2_mass,
+    laminates,
     rigid_offset,
     rod_mass,
     rod_stiffness,
+    shell_mass,
+    shell_stiffness,
 )
 
 
@@ -90,6 +93,14 @@ def _element_blocks(model: Model):
         xa, xb = model.xyz[u.nodes[:, 0]], model.xyz[u.nodes[:, 1]]
         ke = jax.vmap(bush_stiffness)(xa, xb, u.axes, u.k, u.s) * u.k_scale[:, None, None]
         out["bushes"] = (u.nodes, ke, None)
+    for name in ("quads", "trias"):
+        sh = getattr(model, name)
+        if len(sh.ids):
+            lam = laminates(model.shell_sections, model.materials, sh.section, sh.theta, sh.zoffs)
+            xyz = jnp.asarray(model.xyz)[sh.nodes]
+            ke = jax.vmap(shell_stiffness, in_axes=(0, 0, 0, None))(xyz, lam, sh.t_ratio, model.k6rot)
+            me = jax.vmap(lambda x, lm, r: shell_mass(x, lm, r, lumped))(xyz, lam, sh.t_ratio)
+            out[name] = (sh.nodes, ke * sh.k_scale[:, None, None], me * sh.m_scale[:, None, None])
     if len(model.masses.ids):
         c = model.masses
         me = jax.vmap(conm2_mass)(c.m, c.offset, c.inertia) * c.m_scale[:, None, None]

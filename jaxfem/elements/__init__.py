@@ -8,3 +8,8 @@ from ._bush import bush_stiffness as bush_stiffness
 from ._mass import conm2_mass as conm2_mass
 from ._rod import rod_mass as rod_mass
 from ._rod import rod_stiffness as rod_stiffness
+from ._laminate import Laminate as Laminate
+from ._laminate import laminates as laminates
+from ._shell import shell_frame as shell_frame
+from ._shell import shell_mass as shell_mass
+from ._shell import shell_stiffness as shell_stiffness
