@@ -3,7 +3,8 @@
 Errors are :class:`jaxfem.io.BulkDataError` naming file, line, card, id and field, e.g.
 ``frame.bdf:31: CBAR 12 field 5 (GB): grid 9 is not defined``. Here the PARAMs and the
 elements; grids and axes are in :mod:`jaxfem._grids`, materials and sections in
-:mod:`jaxfem._sections`, constraints and the DoF map in :mod:`jaxfem._constraints`.
+:mod:`jaxfem._sections`, shells in :mod:`jaxfem._shell_build`, constraints and the DoF
+map in :mod:`jaxfem._constraints`.
 """
 
 from __future__ import annotations
@@ -16,7 +17,8 @@ from ._assembly import finalize_dofs
 from ._constraints import _dof_map
 from ._grids import _axis, _by_id, _coincident, _coordinate_systems, _f64, _Grids, _ints, _orientation
 from ._model import Beams, Bushes, Masses, Model, Rods, Springs, require_float64
-from ._sections import _beam_sections, _materials, _no_shell_sections, _no_shells, _rod_sections
+from ._sections import _beam_sections, _materials, _rod_sections
+from ._shell_build import _k6rot, _shell_elements
 from .io import BulkData, Card
 
 
@@ -34,7 +36,11 @@ def build_model(bulk: BulkData, spc_set: int | None = None, mpc_set: int | None 
 
     **Returns:** :class:`jaxfem.Model` with grids sorted by id, element blocks sorted by
     element id, ``k_scale = m_scale = 1``, lumped mass unless PARAM COUPMASS > 0
-    (Nastran default COUPMASS = -1), then :func:`jaxfem._assembly.finalize_dofs`.
+    (Nastran default COUPMASS = -1), ``k6rot`` from PARAM K6ROT (default 100.0), then
+    :func:`jaxfem._assembly.finalize_dofs`. Materials are MAT1, MAT2 and MAT8 in one
+    table (beams and rods need MAT1); shells are CQUAD4 (``quads``) and CTRIA3 (``trias``)
+    on PSHELL or PCOMP sections, with the geometry checks of :mod:`jaxfem._shell_build`
+    (a warped quad above its warning limit gives a ``UserWarning``).
     """
     require_float64()
     if bulk.unknown:
@@ -44,26 +50,29 @@ def build_model(bulk: BulkData, spc_set: int | None = None, mpc_set: int | None 
     lumped = _lumped(params)
     frames = _coordinate_systems(bulk["CORD2R"])
     grids = _Grids(bulk["GRID"], frames)
-    materials, mat_rows = _materials(bulk["MAT1"])
-    properties = {c.id: c for name in ("PBAR", "PBARL", "PBEAM", "PROD", "PELAS", "PBUSH") for c in bulk[name]}
-    beam_sections, beam_rows = _beam_sections(bulk, mat_rows)
-    rod_sections, rod_rows = _rod_sections(bulk["PROD"], mat_rows)
+    materials, mat_rows = _materials(bulk)
+    properties = {c.id: c for name in ("PBAR", "PBARL", "PBEAM", "PROD", "PELAS", "PBUSH", "PSHELL", "PCOMP")
+                  for c in bulk[name]}
+    beam_sections, beam_rows = _beam_sections(bulk, mat_rows, materials)
+    rod_sections, rod_rows = _rod_sections(bulk["PROD"], mat_rows, materials)
+    shell_sections, quads, trias = _shell_elements(bulk, grids, frames, properties, materials, mat_rows)
     model = Model(
         node_ids=grids.ids,
         xyz=grids.xyz,
         materials=materials,
         beam_sections=beam_sections,
         rod_sections=rod_sections,
-        shell_sections=_no_shell_sections(),
+        shell_sections=shell_sections,
         beams=_beams(bulk, grids, properties, beam_rows),
         rods=_rods(bulk["CROD"], grids, properties, rod_rows),
         springs=_springs(bulk, grids, properties),
         bushes=_bushes(bulk["CBUSH"], grids, properties, frames),
-        quads=_no_shells(4),
-        trias=_no_shells(3),
+        quads=quads,
+        trias=trias,
         masses=_masses(bulk["CONM2"], grids),
         dofs=_dof_map(bulk, grids, spc_set, mpc_set),
         lumped=lumped,
+        k6rot=_k6rot(params),
     )
     return finalize_dofs(model)
 

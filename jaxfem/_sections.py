@@ -1,6 +1,8 @@
-"""Materials and cross sections of bulk data: MAT1, PBAR, PBARL, PBEAM, PROD.
+"""Materials and cross sections of bulk data: MAT1, MAT2, MAT8, PBAR, PBARL, PBEAM, PROD.
 
-MAT1 completes E, G, NU from two of them (MSC QRG, MAT1 remarks); a PBARL section (BAR,
+One material table of MAT1, MAT2 and MAT8 (the last two checked in
+:mod:`jaxfem._shell_build`; beams and rods need MAT1). MAT1 completes E, G, NU from two
+of them (MSC QRG, MAT1 remarks); a PBARL section (BAR,
 ROD, TUBE, BOX) gets A, I1, I2, J, K1, K2 from its dimensions (rectangle torsion: Roark
 table 10.7; box: Bredt's formula); PBEAM is a constant section (end A); every value is
 checked. Tables are sorted by id, with the map id → row that the elements use.
@@ -11,46 +13,62 @@ from __future__ import annotations
 import numpy as np
 
 from ._grids import _by_id, _f64, _ints
-from ._model import MAT1, BeamSections, Materials, RodSections, Shells, ShellSections
+from ._model import MAT1, MAT2, MAT8, BeamSections, Materials, RodSections
+from ._shell_build import _mat2_row, _mat8_row
 from .io import BulkData, Card
 
+_KINDS = {"MAT1": MAT1, "MAT2": MAT2, "MAT8": MAT8}
 
-def _materials(cards: list[Card]) -> tuple[Materials, dict[int, int]]:
-    """MAT1 table. Two of E, G, NU given: the third from G = E / (2 (1 + NU)); only E
-    (or only G): the other modulus and NU are 0 (MSC QRG, MAT1 remarks)."""
-    cards = _by_id(cards)
-    rows = []
-    for card in cards:
-        E, G, nu = card["E"], card["G"], card["NU"]
-        if nu is None and E is not None and G is not None:
-            if G <= 0.0:
-                raise card.error("G", f"G must be > 0 to derive NU, got {G}")
-            nu = E / (2.0 * G) - 1.0
-        elif G is None and nu is not None:
-            G = E / (2.0 * (1.0 + nu))
-        elif E is None and nu is not None:
-            E = 2.0 * (1.0 + nu) * G
-        E, G, nu = E or 0.0, G or 0.0, nu or 0.0
-        if E <= 0.0:
-            raise card.error("E", f"E must be > 0, got {E}")
-        if G < 0.0:
-            raise card.error("G", f"G must be >= 0, got {G}")
-        if card["RHO"] < 0.0:
-            raise card.error("RHO", f"negative density {card['RHO']}")
-        rows.append((E, G, nu, card["RHO"]))
-    E, G, nu, rho = np.asarray(rows, dtype=np.float64).reshape(-1, 4).T
+
+def _materials(bulk: BulkData) -> tuple[Materials, dict[int, int]]:
+    """MAT1, MAT2 and MAT8 in one table sorted by id, and the map id -> row (fields as
+    documented in :class:`jaxfem.Materials`)."""
+    cards = _by_id(bulk["MAT1"] + bulk["MAT2"] + bulk["MAT8"])
+    readers = {"MAT1": _mat1_row, "MAT2": _mat2_row, "MAT8": _mat8_row}
+    rows = [readers[card.name](card) for card in cards]
+    n = len(cards)
+    E, G, nu, rho, E2, G1z, G2z = np.asarray([r[:7] for r in rows], dtype=np.float64).reshape(-1, 7).T
     ids = _ints([c.id for c in cards])
-    n = len(ids)
-    zero = _f64(np.zeros(n))
-    materials = Materials(ids=ids, kind=np.full(n, MAT1, np.int64), E=_f64(E), G=_f64(G), nu=_f64(nu), rho=_f64(rho),
-                          E2=zero, G1z=zero, G2z=zero, Q=_f64(np.zeros((n, 3, 3))))
+    materials = Materials(
+        ids=ids, kind=_ints([_KINDS[c.name] for c in cards]), E=_f64(E), G=_f64(G), nu=_f64(nu), rho=_f64(rho),
+        E2=_f64(E2), G1z=_f64(G1z), G2z=_f64(G2z), Q=_f64(np.reshape([r[7] for r in rows], (n, 3, 3))),
+    )
     return materials, {int(m): i for i, m in enumerate(ids)}
 
 
-def _material(card: Card, mat_rows: dict[int, int]) -> int:
+def _mat1_row(card: Card) -> tuple:
+    """(E, G, nu, rho, E2, G1z, G2z, Q) of a MAT1. Two of E, G, NU given: the third from
+    G = E / (2 (1 + NU)); only E (or only G): the other modulus and NU are 0 (MSC QRG,
+    MAT1 remarks)."""
+    E, G, nu = card["E"], card["G"], card["NU"]
+    if nu is None and E is not None and G is not None:
+        if G <= 0.0:
+            raise card.error("G", f"G must be > 0 to derive NU, got {G}")
+        nu = E / (2.0 * G) - 1.0
+    elif G is None and nu is not None:
+        G = E / (2.0 * (1.0 + nu))
+    elif E is None and nu is not None:
+        E = 2.0 * (1.0 + nu) * G
+    E, G, nu = E or 0.0, G or 0.0, nu or 0.0
+    if E <= 0.0:
+        raise card.error("E", f"E must be > 0, got {E}")
+    if G < 0.0:
+        raise card.error("G", f"G must be >= 0, got {G}")
+    if card["RHO"] < 0.0:
+        raise card.error("RHO", f"negative density {card['RHO']}")
+    return E, G, nu, card["RHO"], 0.0, 0.0, 0.0, np.zeros((3, 3))
+
+
+def _material(card: Card, mat_rows: dict[int, int], materials: Materials) -> int:
+    """Row of the MAT1 of a beam or rod section; located error for another kind."""
     if card["MID"] not in mat_rows:
         raise card.error("MID", f"material {card['MID']} is not defined (MAT1)")
-    return mat_rows[card["MID"]]
+    row = mat_rows[card["MID"]]
+    kind = int(materials.kind[row])
+    if kind != MAT1:
+        what = "rods" if card.name == "PROD" else "beams"
+        raise card.error("MID", f"material {card['MID']} is a MAT{kind}; {what} need MAT1")
+    return row
 
 
 def _rectangle_torsion(a: float, b: float) -> float:
@@ -105,7 +123,9 @@ def _pbarl_section(card: Card) -> tuple[float, float, float, float, float, float
     return area, (b * h**3 - bi * hi**3) / 12, (h * b**3 - hi * bi**3) / 12, j, 2 * t4 * h / area, 2 * t3 * b / area
 
 
-def _beam_sections(bulk: BulkData, mat_rows: dict[int, int]) -> tuple[BeamSections, dict[int, int]]:
+def _beam_sections(
+    bulk: BulkData, mat_rows: dict[int, int], table: Materials
+) -> tuple[BeamSections, dict[int, int]]:
     """PBAR (blank K1/K2 = 0: no shear flexibility), PBARL (see :func:`_pbarl_section`)
     and PBEAM (constant section, end A; K1/K2 default 1.0)."""
     cards = _by_id(bulk["PBAR"] + bulk["PBARL"] + bulk["PBEAM"])
@@ -126,7 +146,7 @@ def _beam_sections(bulk: BulkData, mat_rows: dict[int, int]) -> tuple[BeamSectio
                 raise card.error(key, f"{key} must be >= 0, got {value}")
         if card["NSM"] < 0.0:
             raise card.error("NSM", f"negative non-structural mass {card['NSM']}")
-        materials.append(_material(card, mat_rows))
+        materials.append(_material(card, mat_rows, table))
         values.append((area, i1, i2, j, k1, k2, card["NSM"]))
     columns = np.asarray(values, dtype=np.float64).reshape(-1, 7).T
     ids = _ints([c.id for c in cards])
@@ -138,7 +158,9 @@ def _beam_sections(bulk: BulkData, mat_rows: dict[int, int]) -> tuple[BeamSectio
     return sections, {int(p): i for i, p in enumerate(ids)}
 
 
-def _rod_sections(cards: list[Card], mat_rows: dict[int, int]) -> tuple[RodSections, dict[int, int]]:
+def _rod_sections(
+    cards: list[Card], mat_rows: dict[int, int], table: Materials
+) -> tuple[RodSections, dict[int, int]]:
     cards = _by_id(cards)
     for card in cards:
         if card["A"] <= 0.0:
@@ -150,24 +172,10 @@ def _rod_sections(cards: list[Card], mat_rows: dict[int, int]) -> tuple[RodSecti
     ids = _ints([c.id for c in cards])
     sections = RodSections(
         ids=ids,
-        material=_ints([_material(c, mat_rows) for c in cards]),
+        material=_ints([_material(c, mat_rows, table) for c in cards]),
         A=_f64([c["A"] for c in cards]),
         J=_f64([c["J"] for c in cards]),
         nsm=_f64([c["NSM"] for c in cards]),
     )
     return sections, {int(p): i for i, p in enumerate(ids)}
 
-
-def _no_shell_sections() -> ShellSections:
-    e = _f64(np.zeros(0))
-    return ShellSections(
-        ids=_ints([]), composite=np.zeros(0, bool), shear_rigid=np.zeros(0, bool),
-        materials=_ints([], 4), ply_material=_ints([], 1), t=e, bending_ratio=e, shear_ratio=e, nsm=e, z0=e,
-        ply_t=_f64(np.zeros((0, 1))), ply_theta=_f64(np.zeros((0, 1))), membrane=e, bending=e, shear=e,
-    )
-
-
-def _no_shells(nn: int) -> Shells:
-    e = _f64(np.zeros(0))
-    return Shells(ids=_ints([]), pids=_ints([]), section=_ints([]), nodes=_ints([], nn), theta=e, zoffs=e,
-                  t_ratio=_f64(np.zeros((0, nn))), k_scale=e, m_scale=e)

@@ -95,10 +95,10 @@ def test_comments_blank_lines_executive_and_enddata():
 
 
 def test_unknown_cards_are_collected_with_locations():
-    text = "GRID,1\nCQUAD4,1,1,1,2,3,4\n,0.1\nCQUAD4,2,1,1,2,3,4\nEIGRL,10,,,6\n"
+    text = "GRID,1\nCHEXA,1,1,1,2,3,4,5,6\n,7,8\nCHEXA,2,1,1,2,3,4,5,6\nEIGRL,10,,,6\n"
     bulk = read_bdf_text(text, name="m.bdf")
-    assert bulk.unknown == {"CQUAD4": [("m.bdf", 2), ("m.bdf", 4)], "EIGRL": [("m.bdf", 5)]}
-    assert "CQUAD4 x2 (m.bdf:2, m.bdf:4)" in bulk.report()
+    assert bulk.unknown == {"CHEXA": [("m.bdf", 2), ("m.bdf", 4)], "EIGRL": [("m.bdf", 5)]}
+    assert "CHEXA x2 (m.bdf:2, m.bdf:4)" in bulk.report()
     assert "GRID     1" in bulk.report()
 
 

@@ -263,9 +263,9 @@ def test_spc_set_selection():
 
 
 def test_unknown_cards_warn_and_lumped_default():
-    text = FRAME.replace("PARAM,COUPMASS,1\n", "").replace("ENDDATA", "CQUAD4,1,1,1,2,3\nENDDATA")
-    line = text.splitlines().index("CQUAD4,1,1,1,2,3") + 1
-    expected = f"m.bdf: unsupported bulk-data cards ignored: CQUAD4 x1 (m.bdf:{line})"
+    text = FRAME.replace("PARAM,COUPMASS,1\n", "").replace("ENDDATA", "CHEXA,1,1,1,2,3\nENDDATA")
+    line = text.splitlines().index("CHEXA,1,1,1,2,3") + 1
+    expected = f"m.bdf: unsupported bulk-data cards ignored: CHEXA x1 (m.bdf:{line})"
     with pytest.warns(UserWarning, match=re.escape(expected)):
         model = _build(text)
     assert model.lumped is True  # no PARAM COUPMASS: Nastran default is lumped

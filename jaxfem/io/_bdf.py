@@ -31,6 +31,12 @@ Cards (values keyed by QRG field names; see ``jaxfem.io._cards._PARSERS``) and w
   values, footer K1/K2; tapered stations, NSI, CW, M, N refused), PROD, MAT1;
 - CONM2 (CID 0/blank or -1), CELAS1 + PELAS (two per card, split), CELAS2 (a grounded
   end has G and C None), CBUSH (GB required, OCID -1/blank) + PBUSH (rows K, B, GE, RCV);
+- CQUAD4, CTRIA3 (field 8: a real is ``THETA`` [deg], an integer ``MCID``; ``ZOFFS``,
+  ``TFLAG`` 0/1, corner thicknesses ``T1..Tn``, blank None), PSHELL (T required; MID1..MID4,
+  ``BENDING`` = 12I/T³, ``SHEAR`` = TS/T; plane strain MID2 = -1 refused), PCOMP (``MID``,
+  ``T``, ``THETA``, ``SOUT`` tuples over the listed plies, a blank MIDi/Ti taken from the
+  ply before; LAM blank or SYM, MEM/BEND/SMEAR/SMCORE refused), MAT2, MAT8 (E1, E2, NU12,
+  G12 required);
 - RBE2 (``GM`` tuple), RBE3 (``GROUPS`` of (WT, C, grids); UM refused, ALPHA kept
   unused), MPC (``TERMS`` of (G, C, A), single components 1..6, A1 ≠ 0), SPC (one card
   per G/C/D triplet), SPC1 (``G`` tuple, THRU), PARAM.

@@ -1,11 +1,12 @@
 """Readers of the supported bulk-data cards: field layouts, value checks, unique ids.
 
 One parser per card name (``_PARSERS``): fixed layouts from a schema with a check of the
-values (GRID, CORD2R, CBAR, CBEAM, CROD, PBAR, PROD, MAT1, CONM2, CELAS1, CELAS2, CBUSH),
-and the variable layouts read field by field (PELAS, SPC, SPC1, RBE2, RBE3, MPC, PARAM, PBARL,
-PBEAM, PBUSH); what Nastran allows but the model does not support is refused with a
-located :class:`BulkDataError` (MSC Nastran QRG, per card). :func:`_check_unique` refuses
-two cards with one id in the same id space (elements, properties, materials, ...).
+values (GRID, CORD2R, CBAR, CBEAM, CROD, PBAR, PROD, MAT1, CONM2, CELAS1, CELAS2, CBUSH,
+CQUAD4, CTRIA3, PSHELL, MAT2, MAT8), and the variable layouts read field by field (PELAS,
+SPC, SPC1, RBE2, RBE3, MPC, PARAM, PBARL, PBEAM, PBUSH, PCOMP); what Nastran allows but
+the model does not support is refused with a located :class:`BulkDataError` (MSC Nastran
+QRG, per card). :func:`_check_unique` refuses two cards with one id in the same id space
+(elements, properties, materials, ...).
 """
 
 from __future__ import annotations
@@ -410,6 +411,111 @@ def _pbush(raw: _Raw) -> list[Card]:
     return [raw.card(values, positions)]
 
 
+# ---------------------------------------------------------------------------------------
+# Shells and composites (MSC QRG: CQUAD4, CTRIA3, PSHELL, PCOMP, MAT2, MAT8)
+
+
+def _check_shell(raw: _Raw, values: dict, positions: dict) -> None:
+    """CQUAD4/CTRIA3 field 8: a real is THETA [deg], an integer MCID >= 0, blank THETA 0.0
+    (key MCID None unless given); TFLAG 0 (blank) or 1; corner thicknesses T1..Tn (blank:
+    the property's T) >= 0 and not all zero."""
+    theta = values["THETA"]
+    values["MCID"], positions["MCID"] = None, positions["THETA"]
+    if theta is None:
+        values["THETA"] = 0.0
+    elif isinstance(theta, int):
+        if theta < 0:
+            raise raw.error(positions["THETA"], "MCID", f"material coordinate system id must be >= 0, got {theta}")
+        values.update(THETA=None, MCID=theta)
+    if values["TFLAG"] not in (0, 1):
+        raise raw.error(positions["TFLAG"], "TFLAG", f"TFLAG must be 0 (blank) or 1, got {values['TFLAG']}")
+    corners = [k for k in ("T1", "T2", "T3", "T4") if k in values]
+    for key in corners:
+        if values[key] is not None and values[key] < 0.0:
+            raise raw.error(positions[key], key, f"corner thickness must be >= 0, got {values[key]}")
+    if all(values[k] == 0.0 for k in corners):
+        raise raw.error(positions["T1"], "T1", "corner thicknesses T1..Tn must not all be zero")
+
+
+def _check_pshell(raw: _Raw, values: dict, positions: dict) -> None:
+    if values["T"] is None:
+        raise raw.error(
+            positions["T"], "T",
+            "T is required here (a blank T, thickness from the elements' T1..T4 only, is not supported)",
+        )
+    for key in ("MID1", "MID2", "MID3", "MID4"):
+        mid = values[key]
+        if mid is not None and mid <= 0:
+            why = (
+                "plane strain (MID2 = -1) is not supported" if key == "MID2" and mid == -1
+                else f"material id must be positive or blank, got {mid}"
+            )
+            raise raw.error(positions[key], key, why)
+
+
+_PCOMP_FAILURE = ("HILL", "HOFF", "TSAI", "STRN")
+_PCOMP_LAM_REFUSED = ("MEM", "BEND", "SMEAR", "SMCORE")
+
+
+def _pcomp(raw: _Raw) -> list[Card]:
+    """PCOMP: PID, Z0, NSM, SB, FT, TREF, GE, LAM; then plies MIDi, Ti, THETAi, SOUTi,
+    two per continuation row (MSC QRG, PCOMP).
+
+    ``MID``, ``T``, ``THETA`` [deg], ``SOUT`` are tuples over the plies as listed (LAM =
+    SYM: the bottom half; the builder mirrors it). A blank MIDi or Ti takes the previous
+    ply's value (QRG remark), so the first ply needs both; THETAi blank is 0.0, SOUTi NO.
+    LAM blank or SYM only; an empty ply slot between plies is refused; positions
+    ``MIDi``, ``Ti``, ``THETAi``, ``SOUTi`` (i from 1, as listed) locate messages.
+    """
+    head = (_id("PID"), _re("Z0", None), _re("NSM"), _re("SB", None), ("FT", "word", None), _re("TREF"),
+            _re("GE"), ("LAM", "word", None))
+    values, positions = _read(raw, head)
+    if values["FT"] is not None and values["FT"] not in _PCOMP_FAILURE:
+        raise raw.error(positions["FT"], "FT", f"expected one of {', '.join(_PCOMP_FAILURE)}, got {values['FT']!r}")
+    lam = values["LAM"]
+    if lam in _PCOMP_LAM_REFUSED:
+        raise raw.error(positions["LAM"], "LAM", f"LAM = {lam} is not supported (only blank or SYM)")
+    if lam not in (None, "SYM"):
+        raise raw.error(positions["LAM"], "LAM", f"expected blank, SYM, {', '.join(_PCOMP_LAM_REFUSED)}, got {lam!r}")
+    mids: list[int] = []
+    ts: list[float] = []
+    thetas: list[float] = []
+    souts: list[str] = []
+    gap = None
+    for i in range(8, len(raw.texts), 4):
+        if not any(raw.text(j) for j in range(i, i + 4)):
+            gap = i if gap is None else gap
+            continue
+        k = len(mids) + 1
+        if gap is not None:
+            raise raw.error(gap, f"MID{k}", f"empty ply slot before ply {k}: plies must follow each other")
+        for j, key in ((i, "MID"), (i + 1, "T")):
+            if k == 1 and not raw.text(j):
+                raise raw.error(
+                    j, f"{key}1", f"required field is blank (the first ply has no previous ply to take {key} from)"
+                )
+        mid = raw.get(i, f"MID{k}", "id", mids[-1] if mids else None)
+        t = raw.get(i + 1, f"T{k}", "real", ts[-1] if ts else None)
+        if t <= 0.0:
+            raise raw.error(i + 1, f"T{k}", f"ply thickness must be > 0, got {t}")
+        sout = raw.get(i + 3, f"SOUT{k}", "word", "NO")
+        if sout not in ("YES", "NO"):
+            raise raw.error(i + 3, f"SOUT{k}", f"expected YES or NO, got {sout!r}")
+        mids.append(mid)
+        ts.append(t)
+        thetas.append(raw.get(i + 2, f"THETA{k}", "real", 0.0))
+        souts.append(sout)
+        positions.update({f"MID{k}": i, f"T{k}": i + 1, f"THETA{k}": i + 2, f"SOUT{k}": i + 3})
+    if not mids:
+        raise raw.error(8, "MID1", "PCOMP without plies")
+    values.update(MID=tuple(mids), T=tuple(ts), THETA=tuple(thetas), SOUT=tuple(souts))
+    positions.update(MID=8, T=9, THETA=10, SOUT=11)
+    return [raw.card(values, positions)]
+
+
+_SHELL_THETA = (("THETA", "num", None), _re("ZOFFS"))
+
+
 _ORIENT = (("X1", "num", None), _re("X2", None), _re("X3", None))
 _WA_WB = tuple(_re(k) for k in ("W1A", "W2A", "W3A", "W1B", "W2B", "W3B"))
 _CELAS_ENDS = (_int("G1"), _int("C1"), _int("G2"), _int("C2"))
@@ -467,6 +573,32 @@ _PARSERS: dict[str, Callable[[_Raw], list[Card]]] = {
     "SPC": _spc,
     "SPC1": _spc1,
     "PARAM": _param,
+    "CQUAD4": _fixed(
+        _id("EID"), _id("PID", _SAME_AS_ID), _id("G1"), _id("G2"), _id("G3"), _id("G4"), *_SHELL_THETA,
+        None, None, _int("TFLAG", 0), _re("T1", None), _re("T2", None), _re("T3", None), _re("T4", None),
+        check=_check_shell,
+    ),
+    "CTRIA3": _fixed(
+        _id("EID"), _id("PID", _SAME_AS_ID), _id("G1"), _id("G2"), _id("G3"), *_SHELL_THETA, None,
+        None, None, _int("TFLAG", 0), _re("T1", None), _re("T2", None), _re("T3", None),
+        check=_check_shell,
+    ),
+    "PSHELL": _fixed(
+        _id("PID"), _int("MID1"), _re("T", None), _int("MID2"), _re("BENDING", 1.0), _int("MID3"),
+        _re("SHEAR", 0.833333), _re("NSM"), _re("Z1", None), _re("Z2", None), _int("MID4"),
+        check=_check_pshell,
+    ),
+    "PCOMP": _pcomp,
+    "MAT2": _fixed(
+        _id("MID"), *(_re(k) for k in ("G11", "G12", "G13", "G22", "G23", "G33", "RHO")),
+        *(_re(k) for k in ("A1", "A2", "A3", "TREF", "GE")),
+        _re("ST", None), _re("SC", None), _re("SS", None), _int("MCSID"),
+    ),
+    "MAT8": _fixed(
+        _id("MID"), *(("E1", "real", _REQUIRED), ("E2", "real", _REQUIRED), ("NU12", "real", _REQUIRED)),
+        ("G12", "real", _REQUIRED), _re("G1Z", None), _re("G2Z", None), _re("RHO"), _re("A1"), _re("A2"), _re("TREF"),
+        *(_re(k, None) for k in ("XT", "XC", "YT", "YC", "S")), _re("GE"), _re("F12"), _re("STRN"),
+    ),
 }
 
 # Id spaces in which two cards may not share an id (Nastran: element ids are unique across
@@ -474,9 +606,9 @@ _PARSERS: dict[str, Callable[[_Raw], list[Card]]] = {
 _ID_SPACES = {
     "grid": ("GRID",),
     "coordinate system": ("CORD2R",),
-    "element": ("CBAR", "CBEAM", "CROD", "CELAS1", "CELAS2", "CBUSH", "CONM2", "RBE2", "RBE3"),
-    "property": ("PBAR", "PBARL", "PBEAM", "PROD", "PELAS", "PBUSH"),
-    "material": ("MAT1",),
+    "element": ("CBAR", "CBEAM", "CROD", "CELAS1", "CELAS2", "CBUSH", "CONM2", "RBE2", "RBE3", "CQUAD4", "CTRIA3"),
+    "property": ("PBAR", "PBARL", "PBEAM", "PROD", "PELAS", "PBUSH", "PSHELL", "PCOMP"),
+    "material": ("MAT1", "MAT2", "MAT8"),
     "PARAM": ("PARAM",),
 }
 
