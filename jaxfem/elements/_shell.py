@@ -120,7 +120,7 @@ def _stiff_local(xy, lam, r_corner, k6rot, points, weights, shape, shear_at):
         return k
     m = 6 * nn
     kii = k[m:, m:]
-    kii = kii + jnp.eye(extra) * (jnp.trace(kii) == 0.0)  # no membrane: nothing to condense
+    kii = kii + jnp.eye(extra) * (jnp.trace(kii) == 0.0).astype(jnp.float64)  # no membrane: nothing to condense
     return k[:m, :m] - k[:m, m:] @ jnp.linalg.solve(kii, k[m:, :m])
 
 
