@@ -28,3 +28,5 @@ from ._damping import rayleigh_coefficients as rayleigh_coefficients
 from ._damping import rayleigh_ratio as rayleigh_ratio
 from ._response import frf_direct as frf_direct
 from ._response import frf_modal as frf_modal
+from ._sensors import SensorMap as SensorMap
+from ._sensors import locate_sensors as locate_sensors
