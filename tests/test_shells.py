@@ -9,6 +9,9 @@ plate; Sanders' shell theory for a cylinder with shear-diaphragm ends (Leissa 19
 
 from __future__ import annotations
 
+import equinox as eqx
+import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 import scipy.linalg as sl
@@ -328,3 +331,101 @@ def test_one_shell_model_in_three_formats_gives_identical_matrices():
         for a, b in zip(mats[0], other):
             np.testing.assert_array_equal(a, b)
     assert mats[0][0].dtype == np.float64 and np.abs(mats[0][0]).max() > 0
+
+
+# ---------------------------------------------------------------------------------------
+# Derivatives through eigh on a stiffened laminated panel
+
+
+def _stiffened_panel() -> str:
+    """A 0.4 × 0.3 m PCOMP [0/45/−45/90] panel (offset, unsymmetric: B ≠ 0) clamped at
+    x = 0, with a MAT8 PSHELL blade stringer along y = 0.15."""
+    text = plate(0.4, 0.3, 8, 6, f"{CFRP}\nPCOMP,1,,,,,,,\n,2,0.0005,0.,,2,0.0005,45.,\n,2,0.0005,-45.,,2,0.0005,90.,\n"
+                 "PSHELL,2,2,0.002,2,,2", bc="cfff")
+    lines = text.splitlines()
+    row = [9 * 3 + i + 1 for i in range(9)]  # grids on y = 0.15
+    for k in (1, 2):
+        lines += [f"GRID,{1000 * k + i},,{0.05 * i!r},0.15,{0.015 * k!r}" for i in range(9)]
+    lines += ["SPC1,1,123456,1000,2000"]
+    eid = 500
+    for k, (lower, upper) in enumerate(((row, [1000 + i for i in range(9)]),
+                                        ([1000 + i for i in range(9)], [2000 + i for i in range(9)]))):
+        for i in range(8):
+            lines.append(f"CQUAD4,{eid},2,{lower[i]},{lower[i + 1]},{upper[i + 1]},{upper[i]}")
+            eid += 1
+    lines = [ln + ",,0.0002" if ln.startswith("CQUAD4") and ln.split(",")[2] == "1" else ln for ln in lines]
+    return "\n".join(lines)
+
+
+PANEL_PARAMETERS = ("E1", "G12", "G1Z", "t", "ply angle", "membrane", "transverse shear")
+
+
+def _panel_model(model):
+    def with_p(p):
+        mat = model.materials
+        sec = model.shell_sections
+        row = int(np.flatnonzero(np.asarray(mat.ids) == 2)[0])
+        unit = np.zeros(len(mat.ids))
+        unit[row] = 1.0
+        plate_row = (np.asarray(sec.ids) == 1).astype(np.float64)
+        ply = np.zeros(sec.ply_theta.shape)
+        ply[plate_row > 0, 1] = 1.0
+        m = eqx.tree_at(lambda q: (q.materials.E, q.materials.G, q.materials.G1z), model,
+                        (mat.E * (1 + p[0] * unit), mat.G * (1 + p[1] * unit), mat.G1z * (1 + p[2] * unit)))
+        return eqx.tree_at(
+            lambda q: (q.shell_sections.t, q.shell_sections.ply_theta, q.shell_sections.membrane,
+                       q.shell_sections.shear), m,
+            (sec.t * (1 + p[3] * (1 - plate_row)), sec.ply_theta + p[4] * ply, sec.membrane * (1 + p[5] * plate_row),
+             sec.shear * (1 + p[6] * plate_row)))
+    return with_p
+
+
+@pytest.fixture(scope="module")
+def panel():
+    model = _build(_stiffened_panel())
+    with_p = _panel_model(model)
+    n_modes = 6
+
+    def modes(p):
+        return jaxfem.modes(with_p(p), n_modes)
+
+    def dense(p):
+        K, M = jaxfem.assemble(with_p(p))
+        return K.todense(), M.todense()
+
+    p0 = jnp.zeros(len(PANEL_PARAMETERS))
+    lam, phi = modes(p0)
+    jl, jp = jax.jacfwd(modes)(p0)
+    return model, modes, dense, p0, lam, phi, jl, jp
+
+
+def test_stiffened_panel_has_enough_dofs_and_distinct_modes(panel):
+    model, *_, lam, phi, jl, jp = panel
+    assert model.n_dof >= 300 and len(model.quads.ids) == 48 + 16
+    assert np.all(np.diff(np.asarray(lam)) > 1e-3 * float(lam[-1]))
+    assert lam.dtype == jl.dtype == jp.dtype == np.float64
+    assert np.all(np.abs(np.asarray(jl)).max(axis=0) > 0)  # every parameter moves some frequency
+
+
+def test_panel_derivatives_agree_with_nelson(panel):
+    model, _, dense, p0, lam, phi, jl, jp = panel
+    K, M = dense(p0)
+    dK, dM = jax.jacfwd(dense)(p0)
+    lscale, pscale = float(jnp.max(jnp.abs(jl))), float(jnp.max(jnp.abs(jp)))
+    for i in range(len(PANEL_PARAMETERS)):
+        for r in range(len(lam)):
+            dl, dp = jaxfem.nelson(K, M, lam[r], phi[:, r], dK[:, :, i], dM[:, :, i])
+            np.testing.assert_allclose(dl, jl[r, i], rtol=1e-8, atol=1e-8 * lscale, err_msg=PANEL_PARAMETERS[i])
+            np.testing.assert_allclose(dp, jp[:, r, i], atol=1e-8 * pscale, err_msg=PANEL_PARAMETERS[i])
+
+
+def test_panel_derivatives_agree_with_central_differences(panel):
+    """Fourth-order central differences, (−f(2h) + 8f(h) − 8f(−h) + f(−2h)) / 12h."""
+    _, modes, _, p0, lam, phi, jl, jp = panel
+    h = 1e-3
+    for i, name in enumerate(PANEL_PARAMETERS):
+        (l2, p2), (l1, p1), (m1, q1), (m2, q2) = (modes(p0.at[i].set(s * h)) for s in (2, 1, -1, -2))
+        fd_l = (-l2 + 8 * l1 - 8 * m1 + m2) / (12 * h)
+        fd_p = (-p2 + 8 * p1 - 8 * q1 + q2) / (12 * h)
+        np.testing.assert_allclose(fd_l, jl[:, i], rtol=1e-5, atol=1e-5 * float(jnp.max(jnp.abs(jl))), err_msg=name)
+        np.testing.assert_allclose(fd_p, jp[:, :, i], atol=1e-5 * float(jnp.max(jnp.abs(jp))), err_msg=name)
