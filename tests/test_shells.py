@@ -429,3 +429,19 @@ def test_panel_derivatives_agree_with_central_differences(panel):
         fd_p = (-p2 + 8 * p1 - 8 * q1 + q2) / (12 * h)
         np.testing.assert_allclose(fd_l, jl[:, i], rtol=1e-5, atol=1e-5 * float(jnp.max(jnp.abs(jl))), err_msg=name)
         np.testing.assert_allclose(fd_p, jp[:, :, i], atol=1e-5 * float(jnp.max(jnp.abs(jp))), err_msg=name)
+
+
+@pytest.mark.parametrize("coupmass", [True, False])
+@pytest.mark.parametrize("triangles", [False, True])
+def test_rigid_translation_carries_the_whole_mass(coupmass, triangles):
+    """uᵀMu for a unit translation = (ρt + NSM)·area, consistent or lumped, with an offset."""
+    t, nsm = 0.004, 0.5
+    text = plate(0.5, 0.3, 5, 3, f"PSHELL,1,1,{t!r},1,,1,,{nsm!r}\n{ALU}", bc="free", distort=0.2,
+                 coupmass=coupmass, triangles=triangles)
+    text = "\n".join(ln + ",,0.001" if ln.startswith(("CQUAD4", "CTRIA3")) else ln for ln in text.splitlines())
+    model = _build(text)
+    _, M = jaxfem.assemble(model)
+    m = np.asarray(M.todense())
+    for c in (1, 2, 3):
+        u = (np.asarray(model.dofs.labels)[:, 1] == c).astype(float)
+        assert u @ m @ u == pytest.approx((RHO * t + nsm) * 0.5 * 0.3, rel=1e-12)
