@@ -12,6 +12,8 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+import scipy.sparse
+import scipy.sparse.linalg
 
 from ._matrix import ElementMatrix
 from ._model import COMPONENTS, DofMap, Model, check_float64
@@ -187,17 +189,43 @@ def finalize_dofs(model: Model) -> Model:
     return model
 
 
+def _sparse_block(a: ElementMatrix, dofs: np.ndarray) -> scipy.sparse.csc_matrix:
+    """Rows and columns ``dofs`` of an element-stacked matrix as a SciPy CSC matrix (no n × n array)."""
+    pos = np.full(a.n + 1, -1, dtype=np.int64)
+    pos[dofs] = np.arange(len(dofs))
+    rows, cols, vals = [], [], []
+    for blk, idx in zip(a.blocks, a.indices):
+        p = pos[idx]
+        r, c = np.broadcast_arrays(p[:, :, None], p[:, None, :])
+        keep = (r >= 0) & (c >= 0)
+        rows.append(r[keep])
+        cols.append(c[keep])
+        vals.append(np.asarray(blk)[keep])
+    n = len(dofs)
+    return scipy.sparse.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                                   shape=(n, n)).tocsc()
+
+
 def _check_massless_stiffness(model: Model, massless: np.ndarray) -> None:
+    """Refuse massless DoFs whose stiffness block is singular: a sparse LU without pivoting
+    (symmetric ordering) of that block, whose pivots are all positive when it is positive
+    definite."""
     K, _ = assemble(model)
-    kbb = np.asarray(K.todense())[np.ix_(massless, massless)]
+    kbb = _sparse_block(K, massless)
+    scale = max(float(np.abs(kbb.diagonal()).max(initial=0.0)), np.finfo(float).tiny)
     try:
-        np.linalg.cholesky(kbb)
-    except np.linalg.LinAlgError:
-        w, v = np.linalg.eigh(kbb)
-        worst = massless[np.argsort(-np.abs(v[:, 0]))[:4]]
+        lu = scipy.sparse.linalg.splu(kbb, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                                      options={"SymmetricMode": True})
+        pivots = lu.U.diagonal()
+        order = lu.perm_c
+    except RuntimeError:  # exactly singular
+        pivots, order = np.zeros(len(massless)), np.arange(len(massless))
+    bad = pivots <= 1e-12 * scale
+    if bad.any():
+        worst = massless[order[np.argsort(pivots)[: min(4, int(bad.sum()) + 3)]]]
         labels = [tuple(int(x) for x in model.dofs.labels[i]) for i in worst]
         raise ValueError(
             "massless DoFs without stiffness (a mechanism): the stiffness of the DoFs that "
-            f"carry no mass is singular (smallest eigenvalue {w[0]:.3g}); involved "
-            f"(node, component): {labels}. Add mass or stiffness there, or constrain them."
-        ) from None
+            f"carry no mass is singular (smallest pivot {pivots.min():.3g}, largest diagonal {scale:.3g}); "
+            f"involved (node, component): {labels}. Add mass or stiffness there, or constrain them."
+        )

@@ -270,3 +270,18 @@ def test_unknown_cards_warn_and_lumped_default():
         model = _build(text)
     assert model.lumped is True  # no PARAM COUPMASS: Nastran default is lumped
     assert _build(FRAME.replace("COUPMASS,1", "COUPMASS,-1")).lumped is True
+
+
+def test_massless_mechanism_is_refused_with_the_dofs_involved():
+    """Grids 4 and 5 carry no mass and are joined only to each other by a spring: their
+    stiffness block [[k, −k], [−k, k]] is singular, a mechanism named by its DoFs."""
+    text = "\n".join([
+        "GRID,1,,0.,0.,0.,,23456",
+        "GRID,4,,1.,0.,0.,,23456",
+        "GRID,5,,2.,0.,0.,,23456",
+        "CONM2,9,1,,1.",
+        "CELAS2,10,1.e3,1,1",
+        "CELAS2,11,1.e3,4,1,5,1",
+    ])
+    with pytest.raises(ValueError, match=r"a mechanism.*involved \(node, component\): \[\((4|5), 1\), \((4|5), 1\)"):
+        build_model(read_bdf_text(text))
