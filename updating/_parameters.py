@@ -3,7 +3,8 @@
 Every parameter is a relative factor α on its target (``value = value₀ (1 + α)``; for
 ``stiffness``/``mass`` it is the correction factor α_i/β_j of eq. 3.1). The solver works
 on ``θ = log(1 + α)``, so ``α = e^θ − 1 > −1`` holds by construction: stiffness and mass
-can never vanish or turn negative, with no clipping (thesis §3.2.1).
+can never vanish or turn negative, with no clipping (thesis §3.2.1). Two kinds add α
+instead: ``a`` and the ply angle ``theta`` (radians, so bounded below by −1 rad).
 """
 
 from __future__ import annotations
@@ -21,10 +22,24 @@ from jaxtyping import Array, Float
 
 import jaxfem
 from jaxfem import Model
+from jaxfem._model import MAT1, MAT2, MAT8
 
-KINDS = ("stiffness", "mass", "E", "G", "rho", "A", "I1", "I2", "J", "k", "m", "a")
-_MATERIAL = {"E": "E", "G": "G", "rho": "rho"}
+KINDS = ("stiffness", "mass", "E", "G", "rho", "A", "I1", "I2", "J", "k", "m", "a",
+         "membrane", "bending", "transverse_shear", "E1", "E2", "G12", "G1Z", "G2Z", "NU12", "t", "nsm", "theta")
+# Material kinds: the Materials column scaled and the material types (MAT1/2/8) it acts on.
+_MATERIAL = {
+    "E": ("E", (MAT1,)), "G": ("G", (MAT1,)), "rho": ("rho", (MAT1, MAT2, MAT8)),
+    "E1": ("E", (MAT8,)), "E2": ("E2", (MAT8,)), "G12": ("G", (MAT8,)),
+    "G1Z": ("G1z", (MAT8,)), "G2Z": ("G2z", (MAT8,)), "NU12": ("nu", (MAT8,)),
+}
 _SECTION = {"A", "I1", "I2", "J"}
+# Shell section kinds: the ShellSections factor each scales (A, D, S of the laminate).
+_SHELL_FACTOR = {"membrane": "membrane", "bending": "bending", "transverse_shear": "shear"}
+_SHELL = set(_SHELL_FACTOR) | {"t", "theta"}
+_PIDS_ONLY = set(_MATERIAL) | _SECTION | _SHELL | {"nsm", "a"}
+# Where sections name their material rows: (section table, column).
+_MATERIAL_COLUMNS = (("beam_sections", "material"), ("rod_sections", "material"),
+                     ("shell_sections", "materials"), ("shell_sections", "ply_material"))
 
 
 @dataclass(frozen=True)
@@ -32,12 +47,17 @@ class Parameter:
     """One updating parameter: a relative factor on the values of a target.
 
     ``kind``: ``stiffness`` | ``mass`` (element groups, eq. 3.1) or a physical value
-    ``E``, ``G``, ``rho`` (materials of the target properties), ``A``, ``I1``, ``I2``,
-    ``J`` (sections), ``k`` (springs and bushes), ``m`` (CONM2 masses), ``a`` (the
-    coefficient of the model's frequency law, :class:`jaxfem.Viscoelastic`, additive:
-    ``a = a₀ + α``; its pids name the layer). Targets: ``pids``
-    (property ids), ``eids`` (element ids) or, for ``k``/``m``, ``nodes`` (grid ids).
-    ``bounds``: plausible range of α, reported (not enforced).
+    ``E``, ``G`` (MAT1), ``rho`` (any material) of the materials of the target
+    properties, ``A``, ``I1``, ``I2``, ``J`` (beam and rod sections), ``k`` (springs and
+    bushes), ``m`` (CONM2 masses), ``a`` (the coefficient of the model's frequency law,
+    :class:`jaxfem.Viscoelastic`, additive: ``a = a₀ + α``; its pids name the layer).
+    Shells (PSHELL/PCOMP pids): ``membrane``, ``bending``, ``transverse_shear`` (the
+    laminate's A, D, S), ``E1``, ``E2``, ``G12``, ``G1Z``, ``G2Z``, ``NU12`` (their MAT8
+    materials), ``t`` (thickness: PSHELL T, every PCOMP ply and Z0), ``theta`` (every
+    PCOMP ply angle, additive in radians: ``θ_ply = θ_ply,0 + α``); ``nsm`` (shell, beam
+    and rod sections). Targets: ``pids`` (property ids), ``eids`` (element ids) or, for
+    ``k``/``m``, ``nodes`` (grid ids). ``bounds``: plausible range of α, reported (not
+    enforced).
     """
 
     name: str
@@ -56,7 +76,7 @@ class Parameter:
             raise ValueError(f"parameter {self.name!r}: nodes = [...] is only for kinds k and m")
         if self.kind == "m" and self.pids:
             raise ValueError(f"parameter {self.name!r}: kind m (CONM2) targets eids or nodes, not pids")
-        if self.kind in _MATERIAL or self.kind in _SECTION or self.kind == "a":
+        if self.kind in _PIDS_ONLY:
             if self.eids or not self.pids:
                 raise ValueError(f"parameter {self.name!r}: kind {self.kind} needs pids = [...]")
 
@@ -166,7 +186,7 @@ class Parameterisation(eqx.Module):
     """A :class:`ParameterSet` resolved against one model: ``apply(model, θ)`` is pure JAX.
 
     Built by :func:`parameterise`, which may give target properties private material
-    rows (so that ``E`` of some properties does not change others sharing the MAT1).
+    rows (so that ``E`` of some properties does not change others sharing the material).
     """
 
     parameters: tuple[Parameter, ...] = eqx.field(static=True)
@@ -206,14 +226,11 @@ def _scale_rows(values: Array, rows: np.ndarray, factor) -> Array:
 
 def _scale_physical(model: Model, p: Parameter, factor) -> Model:
     if p.kind in _MATERIAL:
-        mats = np.unique(np.concatenate([
-            model.beam_sections.material[_rows(model.beam_sections.ids, p.pids)],
-            model.rod_sections.material[_rows(model.rod_sections.ids, p.pids)],
-        ]))
-        field_name = _MATERIAL[p.kind]
+        field_name, types = _MATERIAL[p.kind]
+        rows = _material_rows(model, p.pids, types)
         values = getattr(model.materials, field_name)
         return eqx.tree_at(lambda m: getattr(m.materials, field_name), model,
-                           _scale_rows(values, mats, factor))
+                           _scale_rows(values, rows, factor))
     if p.kind in _SECTION:
         rows = _rows(model.beam_sections.ids, p.pids)
         model = eqx.tree_at(lambda m: getattr(m.beam_sections, p.kind), model,
@@ -222,6 +239,26 @@ def _scale_physical(model: Model, p: Parameter, factor) -> Model:
             rows = _rows(model.rod_sections.ids, p.pids)
             model = eqx.tree_at(lambda m: getattr(m.rod_sections, p.kind), model,
                                 _scale_rows(getattr(model.rod_sections, p.kind), rows, factor))
+        return model
+    if p.kind in _SHELL:
+        sec = model.shell_sections
+        rows = _rows(sec.ids, p.pids)
+        if p.kind in _SHELL_FACTOR:
+            name = _SHELL_FACTOR[p.kind]
+            return eqx.tree_at(lambda m: getattr(m.shell_sections, name), model,
+                               _scale_rows(getattr(sec, name), rows, factor))
+        if p.kind == "t":  # PSHELL T; PCOMP plies and Z0 together (same centre); t = Σ plies
+            return eqx.tree_at(lambda m: (m.shell_sections.t, m.shell_sections.z0, m.shell_sections.ply_t), model,
+                               tuple(_scale_rows(v, rows, factor) for v in (sec.t, sec.z0, sec.ply_t)))
+        plies = np.zeros(sec.ply_theta.shape)  # kind theta: every ply of the target PCOMPs
+        plies[rows] = np.asarray(sec.ply_material)[rows] >= 0
+        return eqx.tree_at(lambda m: m.shell_sections.ply_theta, model,
+                           sec.ply_theta + (factor - 1.0) * jnp.asarray(plies))
+    if p.kind == "nsm":
+        for name in ("beam_sections", "rod_sections", "shell_sections"):
+            sec = getattr(model, name)
+            model = eqx.tree_at(lambda m: getattr(m, name).nsm, model,
+                                _scale_rows(sec.nsm, _rows(sec.ids, p.pids), factor))
         return model
     if p.kind == "a":
         if model.viscoelastic is None:
@@ -236,6 +273,80 @@ def _scale_physical(model: Model, p: Parameter, factor) -> Model:
     c = model.masses  # kind "m"
     rows = np.union1d(_rows(c.ids, p.eids), np.flatnonzero(np.isin(model.node_ids[c.nodes], p.nodes)))
     return eqx.tree_at(lambda m: m.masses.m, model, _scale_rows(c.m, rows, factor))
+
+
+def _section_materials(model: Model, pids: Sequence[int]) -> dict[int, np.ndarray]:
+    """pid → the material rows its section names (beam, rod, PSHELL roles, PCOMP plies)."""
+    out: dict[int, list] = {}
+    for name, column in _MATERIAL_COLUMNS:
+        sec = getattr(model, name)
+        rows = np.asarray(getattr(sec, column))
+        for r in _rows(sec.ids, pids):
+            out.setdefault(int(sec.ids[r]), []).extend(int(m) for m in np.ravel(rows[r]) if m >= 0)
+    return {pid: np.unique(np.asarray(rows, np.int64)) for pid, rows in out.items()}
+
+
+def _material_rows(model: Model, pids: Sequence[int], types=(MAT1, MAT2, MAT8)) -> np.ndarray:
+    """Material rows of the types ``types`` (MAT1, MAT2, MAT8) named by the sections of ``pids``."""
+    rows = np.concatenate([np.zeros(0, np.int64), *_section_materials(model, pids).values()])
+    rows = np.unique(rows)
+    return rows[np.isin(model.materials.kind[rows], types)]
+
+
+_TYPE_NAMES = {MAT1: "MAT1", MAT2: "MAT2", MAT8: "MAT8"}
+
+
+def _target_problem(model: Model, p: Parameter) -> str | None:
+    """Why the target properties of a pids-only kind have nothing that ``p`` scales (None: fine)."""
+    if p.kind in _MATERIAL:
+        _, types = _MATERIAL[p.kind]
+        used = _section_materials(model, p.pids)
+        kinds = model.materials.kind
+        none = [pid for pid in p.pids if not np.isin(kinds[used.get(pid, np.zeros(0, np.int64))], types).any()]
+        if none:
+            wanted = "/".join(_TYPE_NAMES[t] for t in types)
+            return f"pids {none} use no {wanted} material (kind {p.kind} scales {wanted} materials)"
+        if p.kind in ("G1Z", "G2Z"):
+            sec = model.shell_sections
+            rows = _rows(sec.ids, p.pids)
+            shear = [np.asarray(sec.ply_material)[r] if sec.composite[r] else np.asarray(sec.materials)[r, 2:3]
+                     for r in rows]
+            values = np.asarray(getattr(model.materials, _MATERIAL[p.kind][0]))
+            bad = [int(sec.ids[r]) for r, m in zip(rows, shear)
+                   if sec.shear_rigid[r] or not ((kinds[m[m >= 0]] == MAT8) & (values[m[m >= 0]] > 0)).any()]
+            if bad:
+                return (f"pids {sorted(bad)} have no MAT8 transverse-shear material with {p.kind} > 0 "
+                        "(MID3 of a PSHELL, or the plies of a PCOMP not shear rigid)")
+        return None
+    if p.kind in _SHELL:
+        sec = model.shell_sections
+        shells = set(sec.ids.tolist())
+        other = [pid for pid in p.pids if pid not in shells]
+        if other:
+            return f"pids {other} are not PSHELL or PCOMP properties (kind {p.kind} acts on shell sections)"
+        rows = _rows(sec.ids, p.pids)
+        if p.kind == "theta":
+            pshell = [int(sec.ids[r]) for r in rows if not sec.composite[r]]
+            if pshell:
+                return f"pids {pshell} are PSHELL; kind theta rotates the plies of PCOMP properties"
+        if p.kind == "transverse_shear":
+            rigid = [int(sec.ids[r]) for r in rows if sec.shear_rigid[r]]
+            if rigid:
+                return f"pids {rigid} are shear rigid (blank MID3, or MAT8 plies without G1Z/G2Z): no S to scale"
+        return None
+    if p.kind == "nsm":
+        values, known = [], set()
+        for name in ("beam_sections", "rod_sections", "shell_sections"):
+            sec = getattr(model, name)
+            rows = _rows(sec.ids, p.pids)
+            values.append(np.asarray(sec.nsm)[rows])
+            known |= set(sec.ids[rows].tolist())
+        other = [pid for pid in p.pids if pid not in known]
+        if other:
+            return f"pids {other} are not beam, rod or shell properties (kind nsm)"
+        if not np.any(np.concatenate(values)):
+            return "NSM is 0 on every target property: a relative factor cannot change it"
+    return None
 
 
 def _target_rows(model: Model, block, p: Parameter) -> np.ndarray:
@@ -257,28 +368,35 @@ def _copy_material(mats, row: int):
     return jax.tree.map(lambda a, b: (np if isinstance(a, np.ndarray) else jnp).concatenate([a, b]), mats, copy)
 
 
-def _private_materials(model: Model, pids: Sequence[int]) -> Model:
-    """Give the sections of ``pids`` their own material rows (copies) if they share one."""
-    mats = model.materials
-    changed = False
-    sections = {}
-    for name in ("beam_sections", "rod_sections"):
+def _private_materials(model: Model, pids: Sequence[int], types=(MAT1, MAT2, MAT8)) -> Model:
+    """Give the sections of ``pids`` their own material rows (copies) where they share one
+    (of the types ``types``) with a property outside ``pids``.
+
+    Every reference is redirected: beam and rod ``material``, the PSHELL roles (MID1..MID4)
+    and PCOMP plies of shell sections. One copy per shared material, used by all the
+    targets' references to it (a PSHELL with MID1 = MID2 keeps one material).
+    """
+    tables = {}
+    for name, column in _MATERIAL_COLUMNS:
         sec = getattr(model, name)
-        material = sec.material.copy()
-        for row in _rows(sec.ids, pids):
-            users = sum(int(np.sum(getattr(model, n).material == material[row]))
-                        for n in ("beam_sections", "rod_sections"))
-            targets = sum(int(np.sum(getattr(model, n).material[_rows(getattr(model, n).ids, pids)]
-                                     == material[row])) for n in ("beam_sections", "rod_sections"))
-            if users > targets:  # shared with a property outside the target: copy it
-                material[row], mats = len(mats.ids), _copy_material(mats, material[row])
-                changed = True
-        sections[name] = material
-    if not changed:
+        rows = np.array(getattr(sec, column), dtype=np.int64, copy=True)
+        target = np.isin(sec.ids, np.asarray(pids, np.int64)).reshape((-1,) + (1,) * (rows.ndim - 1))
+        tables[name, column] = (rows, np.broadcast_to(target, rows.shape) & (rows >= 0))
+    by_target = set().union(*(rows[t].tolist() for rows, t in tables.values()))
+    by_others = set().union(*(rows[~t & (rows >= 0)].tolist() for rows, t in tables.values()))
+    kinds = model.materials.kind
+    shared = sorted(m for m in by_target & by_others if kinds[m] in types)
+    if not shared:
         return model
-    model = eqx.tree_at(lambda m: m.materials, model, mats)
-    for name, material in sections.items():
-        model = eqx.tree_at(lambda m: getattr(m, name).material, model, material)
+    mats = model.materials
+    for m in shared:
+        new = len(mats.ids)
+        mats = _copy_material(mats, m)
+        for rows, target in tables.values():
+            rows[target & (rows == m)] = new
+    model = eqx.tree_at(lambda md: md.materials, model, mats)
+    for (name, column), (rows, _) in tables.items():
+        model = eqx.tree_at(lambda md: getattr(getattr(md, name), column), model, rows)
     return model
 
 
@@ -289,7 +407,7 @@ def parameterise(model: Model, parameters: ParameterSet | Sequence[Parameter]) -
     rows for material parameters, and the pure ``apply(model, θ)`` map.
     """
     params = tuple(parameters.parameters if isinstance(parameters, ParameterSet) else parameters)
-    all_pids = set(np.concatenate([model.beam_sections.ids, model.rod_sections.ids,
+    all_pids = set(np.concatenate([model.beam_sections.ids, model.rod_sections.ids, model.shell_sections.ids,
                                    model.springs.pids, model.bushes.pids]).tolist())
     all_eids = set(model.element_ids().tolist())
     all_nodes = set(model.node_ids.tolist())
@@ -307,11 +425,14 @@ def parameterise(model: Model, parameters: ParameterSet | Sequence[Parameter]) -
             m_groups.append(tuple(int(e) for e in _element_group(model, p)))
             m_index.append(i)
         elif p.kind in _MATERIAL:
-            model = _private_materials(model, p.pids)
+            model = _private_materials(model, p.pids, _MATERIAL[p.kind][1])
     for i, p in enumerate(params):
         empty = (p.kind in ("stiffness", "mass") and not len(_element_group(model, p)))
         if p.kind == "k":
             empty = not (len(_target_rows(model, model.springs, p)) or len(_target_rows(model, model.bushes, p)))
         if empty:
             raise ValueError(f"parameter {p.name!r}: its target contains no element of kind {p.kind}")
+        problem = _target_problem(model, p)
+        if problem:
+            raise ValueError(f"parameter {p.name!r}: {problem}")
     return model, Parameterisation(params, tuple(k_groups), tuple(m_groups), tuple(k_index), tuple(m_index))

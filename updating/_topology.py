@@ -5,10 +5,12 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
 from jaxfem import STIFFNESS_BLOCKS, STRUCTURAL_BLOCKS, Model
+from jaxfem.elements import laminates, shell_mass
 
 
 def _own(model: Model, row: int) -> set[int]:
@@ -72,7 +74,7 @@ def stiffness_pids(model: Model) -> list[int]:
 def halves(model: Model, pid: int) -> list[tuple[np.ndarray, str]]:
     """A group split in two at the median of its longest extent (left/right, in/outboard)."""
     rows, ids = [], []
-    for name in ("beams", "rods"):
+    for name in ("beams", "rods", "quads", "trias"):
         b = getattr(model, name)
         hit = b.pids == pid
         rows.append(model.xyz[b.nodes[hit]].mean(axis=1))
@@ -90,7 +92,7 @@ def halves(model: Model, pid: int) -> list[tuple[np.ndarray, str]]:
 
 
 def element_grids(model: Model, eids) -> list[int]:
-    """Grids of the structural elements ``eids`` (beams, rods, bushes), in id order."""
+    """Grids of the structural elements ``eids`` (beams, rods, bushes, shells), in id order."""
     eids = np.asarray(list(eids), np.int64)
     rows = [nodes[np.isin(ids, eids)].ravel() for _, ids, _, nodes in _structural(model)]
     return sorted({int(model.node_ids[r]) for r in np.concatenate(rows)}) if rows else []
@@ -109,7 +111,13 @@ def property_groups(model: Model, pids: list[int], *, split: bool) -> list[tuple
 
 
 def total_mass(model: Model) -> float:
-    """Structural plus lumped mass (kg), with the current mass factors."""
+    """Structural plus lumped mass (kg), with the current mass factors.
+
+    Beams and rods: (ρA + nsm) × the grid-to-grid length; shells (CQUAD4, CTRIA3): the
+    mass per area I0 of the laminate (ρt or Σ ρ_k t_k of the plies, + nsm) times the
+    corner thickness ratio, integrated over the flat element area (the element's own
+    mass, :func:`jaxfem.elements.shell_mass`); CONM2: m. Each element times its m_scale.
+    """
     b, sec, mat = model.beams, model.beam_sections, model.materials
     xyz = model.xyz
     total = 0.0
@@ -122,6 +130,16 @@ def total_mass(model: Model) -> float:
         length = np.linalg.norm(xyz[r.nodes[:, 1]] - xyz[r.nodes[:, 0]], axis=1)
         s = r.section
         total += float(jnp.sum((mat.rho[rs.material[s]] * rs.A[s] + rs.nsm[s]) * length * r.m_scale))
+    for name in ("quads", "trias"):
+        sh = getattr(model, name)
+        if len(sh.ids):
+            lam = laminates(model.shell_sections, mat, sh.section, sh.theta, sh.zoffs)
+            me = jax.vmap(lambda x, lm, ratio: shell_mass(x, lm, ratio, True))(
+                jnp.asarray(xyz)[sh.nodes], lam, sh.t_ratio)
+            # Lumped: the element mass on each translation of each grid; trace / 3 = its mass.
+            translations = np.tile(np.arange(6) < 3, sh.nodes.shape[1])
+            mass = jnp.sum(jnp.diagonal(me, axis1=1, axis2=2)[:, translations], axis=1) / 3.0
+            total += float(jnp.sum(mass * sh.m_scale))
     return total + float(jnp.sum(model.masses.m * model.masses.m_scale))
 
 
