@@ -80,7 +80,7 @@ def _isotropic(h):
 
 
 # ---------------------------------------------------------------------------------------
-# Laminates: classical lamination theory by hand (Jones 1999, eq. 2.85 and §4.2)
+# Laminates: classical lamination theory by hand (Jones 1999, (2.85) and §4.2)
 
 
 def _qbar(q11, q12, q22, q66, theta_deg):
@@ -276,7 +276,7 @@ def test_cantilever_square_plate_matches_leissa():
 
 def _sanders(m, n, R, L, h):
     """Lowest ω/2π of u = U cos λx cos nφ, v = V sin λx sin nφ, w = W sin λx cos nφ (λ = mπ/L)
-    from Sanders' strain energy (Leissa 1973, eq. 1.60)."""
+    from Sanders' strain energy (Leissa 1973, (1.60))."""
     lam = m * np.pi / L
     c, d = E * h / (1 - NU**2), E * h**3 / (12 * (1 - NU**2))
     ex, et, g = np.array([-lam, 0, 0]), np.array([0, n / R, 1 / R]), np.array([-n / R, lam, 0])

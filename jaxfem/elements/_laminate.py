@@ -2,14 +2,14 @@
 
 The section relates membrane forces N, moments M and transverse shear forces Q to the
 mid-surface strains ε, curvatures κ and shear strains γ (Reddy 2004, *Mechanics of
-Laminated Composite Plates and Shells*, eqs. 3.3.17 and 3.4.26):
+Laminated Composite Plates and Shells*, (3.3.17) and (3.4.26)):
 
 ``[N; M] = [[A, B], [B, D]] [ε; κ]``, ``Q = S γ``, with engineering shear strains.
 
 A lamina of material axes at angle θ from the element x axis has ``Q̄ = T_εᵀ Q T_ε`` and
-``Q̄_s = Rᵀ Q_s R`` (Reddy eq. 2.3.17). For a PCOMP of plies k between z_k and z_{k+1}
-(z from Z0 up): ``A = Σ Q̄_k Δz``, ``B = ½ Σ Q̄_k Δz²``, ``D = ⅓ Σ Q̄_k Δz³`` (Reddy eq.
-3.3.17), ``S = 5/6 Σ Q̄_s,k Δz`` (the shear correction of a homogeneous section). A PSHELL
+``Q̄_s = Rᵀ Q_s R`` (Reddy 2004, (2.3.17)). For a PCOMP of plies k between z_k and z_{k+1}
+(z from Z0 up): ``A = Σ Q̄_k Δz``, ``B = ½ Σ Q̄_k Δz²``, ``D = ⅓ Σ Q̄_k Δz³`` (Reddy
+(3.3.17)), ``S = 5/6 Σ Q̄_s,k Δz`` (the shear correction of a homogeneous section). A PSHELL
 (MSC QRG, PSHELL) has ``A = T·G1``, ``D = (12I/T³)·T³/12·G2``, ``B = T²·G4``,
 ``S = (TS/T)·T·G3`` with Gi the matrices of MIDi. The inertia per unit area is
 ``I0 = ∫ρ dz + NSM``, ``I1 = ∫ρ z dz``, ``I2 = ∫ρ z² dz`` (PSHELL: the density of MID1,
@@ -51,7 +51,7 @@ def material_matrices(kind, E, G, nu, E2, G1z, G2z, Q) -> tuple[Float[Array, "3 
 
     MAT1: ``E/(1−ν²)·[[1, ν], [ν, 1]]`` and Q66 = G; shear G·I. MAT8: ν21 = ν12·E2/E1,
     ``Q11 = E1/(1−ν12ν21)``, ``Q22 = E2/(1−ν12ν21)``, ``Q12 = ν12·Q22``, Q66 = G12
-    (Reddy eq. 2.3.9); shear diag(G1Z, G2Z). MAT2: Q as given; shear its upper 2 × 2.
+    (Reddy 2004, (2.3.9)); shear diag(G1Z, G2Z). MAT2: Q as given; shear its upper 2 × 2.
     """
     is8, is2 = kind == MAT8, kind == MAT2
     E = jnp.where(is2, 1.0, E)  # MAT2 rows carry no E: keep the unused branch finite
@@ -89,7 +89,7 @@ def laminates(sections: ShellSections, mats: Materials, rows: np.ndarray, theta:
 
     The updating factors scale A, D and S (B by √(membrane·bending)); the offset z₀ then
     moves the reference plane: ``B ← B + z₀A``, ``D ← D + 2z₀B + z₀²A``, ``I1 ← I1 + z₀I0``,
-    ``I2 ← I2 + 2z₀I1 + z₀²I0`` (Reddy eq. 3.3.17 with z shifted).
+    ``I2 ← I2 + 2z₀I1 + z₀²I0`` (Reddy 2004, (3.3.17) with z shifted).
     """
     sec = jax.tree.map(lambda a: a[rows], sections)
     composite = jnp.asarray(sec.composite)
