@@ -37,6 +37,7 @@ sorted eigenvalues, valid in forward mode only (``jax.jvp``, ``jax.jacfwd``).
 
 from __future__ import annotations
 
+import os
 from typing import Literal, NamedTuple
 
 import equinox as eqx
@@ -93,9 +94,27 @@ def eigh(
         raise ValueError(f"n_modes must be in 1..{n_free} (DoFs with mass), got {n_modes}")
     if degenerate not in ("mean", "split"):
         raise ValueError(f"degenerate must be 'mean' or 'split', got {degenerate!r}")
+    _check_memory(K.n)
     (kv, ks), (mv, ms) = _values_structure(K), _values_structure(M)
     return _eigh(kv, mv, structure=Opaque((ks, ms)), n_modes=n_modes, degenerate=degenerate,
                  rtol=float(rtol))
+
+
+DENSE_ARRAYS = 8  # n × n float64 arrays alive at once in the dense solve and its JVP (measured order)
+
+
+def _check_memory(n: int) -> None:
+    """Refuse a dense problem whose n × n arrays would not fit in 80 % of the physical memory."""
+    need = DENSE_ARRAYS * 8.0 * n * n
+    try:
+        have = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return
+    if need > 0.8 * have:
+        raise MemoryError(
+            f"the dense eigensolver needs about {need / 2**30:.0f} GiB for {n} DoFs "
+            f"({DENSE_ARRAYS} arrays of {n}²), more than 80 % of this machine's {have / 2**30:.0f} GiB"
+        )
 
 
 def _values_structure(a: AbstractSymmetricMatrix):

@@ -164,3 +164,11 @@ def test_bad_shapes_and_indefinite_mass():
         eigh(jnp.eye(3), jnp.eye(3), 4)
     with pytest.raises(Exception, match="not positive definite"):
         eigh(jnp.eye(3), jnp.diag(jnp.array([1.0, -1.0, 1.0])))
+
+
+def test_a_dense_problem_too_large_for_memory_is_refused_before_allocating():
+    from jaxfem._eigen import _check_memory
+
+    _check_memory(2000)  # 256 MB: fine anywhere
+    with pytest.raises(MemoryError, match=r"needs about \d+ GiB for 1000000 DoFs"):
+        _check_memory(1_000_000)
