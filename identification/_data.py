@@ -17,6 +17,7 @@ import jax
 import numpy as np
 from jaxtyping import Bool, Float, Int, Shaped
 
+import jaxfem
 from jaxfem import Model
 
 FRF_KINDS = ("receptance", "mobility", "accelerance")  # displacement, velocity, acceleration / force
@@ -402,13 +403,12 @@ def observation_matrix(
         xyz = np.asarray(sensor_xyz, dtype=np.float64)
         if xyz.shape != (n, 3):
             raise ValueError(f"sensor_xyz has shape {xyz.shape}, expected ({n}, 3)")
-        dist = np.linalg.norm(xyz[:, None, :] - np.asarray(model.xyz)[None, :, :], axis=2)
-        rows = np.argmin(dist, axis=1)
-        distance = dist[np.arange(n), rows]
-        far = np.flatnonzero(distance > tol)
+        located = jaxfem.locate_sensors(model, xyz, sensors.directions, "nearest", rotational=sensors.rotational,
+                                         labels=sensors.labels)
+        far = np.flatnonzero(located.distance > tol)
         if len(far):
             listing = ", ".join(
-                f"{sensors.labels[i]} → grid {model.node_ids[rows[i]]} ({distance[i]:.3g} m)" for i in far
+                f"{sensors.labels[i]} → grid {located.grids[i, 0]} ({located.distance[i]:.3g} m)" for i in far
             )
             warnings.warn(f"sensors farther than {tol:g} m from their nearest model grid: {listing}", stacklevel=2)
     else:
@@ -420,16 +420,9 @@ def observation_matrix(
             raise ValueError(
                 f"sensor grid(s) {missing} not in the model (pass nearest=True with sensor_xyz to map them)"
             )
-        rows = model.node_index(sensors.nodes)
-        distance = np.zeros(n)
-    dofs = model.dofs
-    comp = np.where(sensors.rotational[:, None], 3, 0) + np.arange(3)[None, :]  # (n, 3)
-    coef = np.asarray(dofs.coef)[rows[:, None], comp]  # (n, 3, w)
-    weights = np.einsum("nc,ncw->nw", sensors.directions, coef)
-    C = np.zeros((n, dofs.n_dof + 1))
-    np.add.at(C, (np.arange(n)[:, None], np.asarray(dofs.index)[rows]), weights)
-    C = C[:, : dofs.n_dof]
-    grids = np.asarray(model.node_ids)[rows]
+        located = jaxfem.sensors_at_grids(model, sensors.nodes, sensors.directions, rotational=sensors.rotational,
+                                          labels=sensors.labels)
+    C, distance, grids = located.matrix, located.distance, located.grids[:, 0]
     i = _first(~np.any(C != 0.0, axis=1))
     if i is not None:
         raise ValueError(

@@ -30,3 +30,4 @@ from ._response import frf_direct as frf_direct
 from ._response import frf_modal as frf_modal
 from ._sensors import SensorMap as SensorMap
 from ._sensors import locate_sensors as locate_sensors
+from ._sensors import sensors_at_grids as sensors_at_grids

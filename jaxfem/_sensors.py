@@ -29,11 +29,13 @@ import warnings
 from collections.abc import Sequence
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float, Inexact, Int
 
 from ._model import Model, check_float64
+from .elements import shell_frame
 
 METHODS = ("nearest", "interpolate")
 _AXES = "XYZ"
@@ -140,8 +142,9 @@ def _direction_label(d: np.ndarray, rotational: bool) -> str:
     return f"{r}({d[0]:.3f},{d[1]:.3f},{d[2]:.3f})"
 
 
-def _directions(directions, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Per sensor a Nastran component ±1..6 or a unit vector → (unit vectors (n, 3), rotational (n,))."""
+def _directions(directions, n: int, rotational=None) -> tuple[np.ndarray, np.ndarray]:
+    """Per sensor a Nastran component ±1..6 or a unit vector (a rotation where
+    ``rotational``) → (unit vectors (n, 3), rotational (n,))."""
     if isinstance(directions, (str, bytes)) or not isinstance(directions, (Sequence, np.ndarray)) or (
         isinstance(directions, np.ndarray) and directions.ndim not in (1, 2)
     ):
@@ -151,6 +154,8 @@ def _directions(directions, n: int) -> tuple[np.ndarray, np.ndarray]:
     items = list(directions)
     if len(items) != n:
         raise ValueError(f"{n} sensor points but {len(items)} directions")
+    if rotational is not None and len(rotational) != n:
+        raise ValueError(f"{n} sensors but {len(rotational)} rotational flags")
     vec = np.zeros((n, 3))
     rot = np.zeros(n, dtype=bool)
     for i, item in enumerate(items):
@@ -168,6 +173,7 @@ def _directions(directions, n: int) -> tuple[np.ndarray, np.ndarray]:
                 what = "is zero" if norm == 0.0 else f"has length {norm:.6g}, not 1"
                 raise ValueError(f"sensor {i}: direction {d.tolist()} {what} (give a unit vector in basic axes)")
             vec[i] = d / norm
+            rot[i] = rotational is not None and bool(rotational[i])
         else:
             raise ValueError(
                 f"sensor {i}: direction {item!r} is neither a component 1..6 nor a unit vector of shape (3,)"
@@ -198,18 +204,9 @@ def _quad_n(xi, eta):
 
 
 def _frames(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Centroid (ne, 3) and rows x, y, n (ne, 3, 3) of the flat projected element, as
-    :func:`jaxfem.elements.shell_frame`: n from the diagonals (quad) or the sides (tria),
-    x along the projected G1→G2 side."""
-    if X.shape[1] == 4:
-        n = np.cross(X[:, 2] - X[:, 0], X[:, 3] - X[:, 1])
-    else:
-        n = np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0])
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    side = X[:, 1] - X[:, 0]
-    x = side - np.sum(side * n, axis=1, keepdims=True) * n
-    x /= np.linalg.norm(x, axis=1, keepdims=True)
-    return X.mean(axis=1), np.stack([x, np.cross(n, x), n], axis=1)
+    """Centroid (ne, 3) and rows x, y, n (ne, 3, 3) of the flat projected elements, from
+    :func:`jaxfem.elements.shell_frame`."""
+    return X.mean(axis=1), np.asarray(jax.vmap(shell_frame)(jnp.asarray(X)))
 
 
 def _natural(x2: np.ndarray, p2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -340,6 +337,7 @@ def locate_sensors(
     directions: Sequence[int | Sequence[float]] | np.ndarray,
     method: str = "nearest",
     *,
+    rotational: Sequence[bool] | None = None,
     labels: Sequence[str] | None = None,
     max_distance: float | None = None,
 ) -> SensorMap:
@@ -357,6 +355,8 @@ def locate_sensors(
       projected on the flat element: Newton iterations on the bilinear map, area
       coordinates on triangles; the element surface is the grid surface, offsets ZOFFS
       are not applied).
+    - ``rotational``: per sensor, whether a unit-vector direction measures a rotation
+      (default: translations).
     - ``labels``: sensor names for the report (default ``"1"``, ``"2"``, …).
     - ``max_distance`` [m] (``interpolate``): a point farther than this from every shell
       element falls back to ``nearest`` with a ``UserWarning``; default: the longest side
@@ -379,7 +379,7 @@ def locate_sensors(
     if len(bad):
         raise ValueError(f"sensor {int(bad[0])}: coordinates {pts[bad[0]].tolist()} are not finite")
     n = len(pts)
-    vec, rot = _directions(directions, n)
+    vec, rot = _directions(directions, n, rotational)
     labels = tuple(str(i + 1) for i in range(n)) if labels is None else tuple(str(s) for s in labels)
     if len(labels) != n:
         raise ValueError(f"{n} sensor points but {len(labels)} labels")
@@ -389,7 +389,6 @@ def locate_sensors(
     blocks = [(name, block) for name, block in (("CQUAD4", model.quads), ("CTRIA3", model.trias))
               if len(block.ids)]
     node_xyz = np.asarray(model.xyz)
-    node_ids = np.asarray(model.node_ids)
     grid_rows: list[np.ndarray] = []
     shape: list[np.ndarray] = []
     elements = np.full(n, -1, dtype=np.int64)
@@ -424,6 +423,37 @@ def locate_sensors(
             f"interpolate: sensor(s) {', '.join(fallback)} read the nearest grid instead ({why})", stacklevel=2
         )
 
+    return _sensor_map(model, grid_rows, shape, vec, rot, labels, pts, elements, tuple(types), distance, method)
+
+
+def sensors_at_grids(
+    model: Model,
+    grids: Sequence[int],
+    directions: Sequence[int | Sequence[float]] | np.ndarray,
+    *,
+    rotational: Sequence[bool] | None = None,
+    labels: Sequence[str] | None = None,
+) -> SensorMap:
+    """Sensors placed at model grids by id (distance 0): the :class:`SensorMap` of
+    :func:`locate_sensors` for test DoFs labelled with the model's grid ids.
+
+    ``directions`` as in :func:`locate_sensors`; ``rotational`` marks unit-vector
+    directions that measure rotations (default: translations). ``ValueError`` naming grid
+    ids that are not in the model.
+    """
+    rows = model.node_index(grids)
+    n = len(rows)
+    vec, rot = _directions(directions, n, rotational)
+    labels = tuple(str(g) for g in grids) if labels is None else tuple(str(x) for x in labels)
+    return _sensor_map(model, [np.array([r]) for r in rows], [np.ones(1)] * n, vec, rot, labels,
+                       np.asarray(model.xyz)[rows].reshape(n, 3), np.full(n, -1, dtype=np.int64), ("",) * n,
+                       np.zeros(n), "grid")
+
+
+def _sensor_map(model, grid_rows, shape, vec, rot, labels, pts, elements, types, distance, method) -> SensorMap:
+    """The SensorMap of sensors reading Σ N_i u(grid_rows_i) along their directions."""
+    n = len(grid_rows)
+    node_ids = np.asarray(model.node_ids)
     rows = [_row(model, g, N, vec[s], rot[s]) for s, (g, N) in enumerate(zip(grid_rows, shape))]
     k = max([1, *(len(r) for r in rows)])
     indices = np.zeros((n, k), dtype=np.int64)
@@ -447,7 +477,7 @@ def locate_sensors(
         grids=grids,
         shape_functions=shape_functions,
         elements=elements,
-        element_types=tuple(types),
+        element_types=types,
         distance=distance,
         n_dof=model.n_dof,
         method=method,

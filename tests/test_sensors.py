@@ -197,7 +197,7 @@ def test_interpolate_falls_back_to_nearest_with_a_warning(free_quads):
                               max_distance=0.01)
 
     beams = _model(
-        "MAT1,1,70.E9,,0.3,2700.\nPBAR,1,1,1.E-4,1.E-9,1.E-9,2.E-9\n"
+        "PARAM,COUPMASS,1\nMAT1,1,70.E9,,0.3,2700.\nPBAR,1,1,1.E-4,1.E-9,1.E-9,2.E-9\n"
         "GRID,1,,0.,0.,0.\nGRID,2,,1.,0.,0.\nGRID,3,,2.,0.,0.\n"
         "CBAR,1,1,1,2,0.,0.,1.\nCBAR,2,1,2,3,0.,0.,1.\n"
     )
@@ -234,3 +234,15 @@ def test_observe_refuses_a_wrong_shape(free_quads):
     sm = jaxfem.locate_sensors(free_quads, [[0.1, 0.2, 0.0]], [3])
     with pytest.raises(ValueError, match=r"phi has shape \(3, 2\)"):
         sm.observe(jnp.zeros((3, 2)))
+
+
+def test_sensors_at_grids_equal_nearest_at_the_grid_points(free_quads):
+    grids = [int(g) for g in free_quads.node_ids[[3, 7, 11]]]
+    skew = np.array([0.6, 0.0, 0.8])
+    by_id = jaxfem.sensors_at_grids(free_quads, grids, [3, skew, skew], rotational=[False, False, True])
+    xyz = np.asarray(free_quads.xyz)[free_quads.node_index(grids)]
+    by_xyz = jaxfem.locate_sensors(free_quads, xyz, [3, skew, skew], "nearest", rotational=[False, False, True])
+    np.testing.assert_array_equal(by_id.matrix, by_xyz.matrix)
+    assert by_id.rotational.tolist() == [False, False, True] and np.all(by_id.distance == 0.0)
+    row = free_quads.dofs.index[free_quads.node_index([grids[2]])[0]]
+    assert set(np.flatnonzero(by_id.matrix[2])) <= set(row.tolist())  # a rotation reads that grid's rotations
