@@ -25,11 +25,14 @@ from ._frf import sine_coefficients as sine_coefficients
 from ._lscf import lscf as lscf
 from ._lscf import stabilisation as stabilisation
 from ._lsfd import lsfd as lsfd
+from ._patches import ShellPatches as ShellPatches
+from ._patches import shell_patches as shell_patches
 from ._phase_resonance import Appropriation as Appropriation
 from ._phase_resonance import appropriate as appropriate
 from ._phase_resonance import appropriation_report as appropriation_report
 from ._phase_resonance import exciter_search as exciter_search
 from ._plots import plot_damage_map as plot_damage_map
+from ._plots import plot_shell_damage_map as plot_shell_damage_map
 from ._plots import plot_stabilisation as plot_stabilisation
 from ._sdof import sdof_fit as sdof_fit
 from ._sine import damping_matrix as damping_matrix

@@ -13,9 +13,13 @@ Damping model (§3.3.3). The healthy structure has Rayleigh damping ``D = μM + 
 writes them η_a,n), with μ, κ fitted to the measured healthy ratios by least squares
 (:func:`fit_rayleigh`). A damage candidate G scales the stiffness of its elements by
 ``1 − s`` and gives them a structural loss factor η_d, i.e. adds ``iη_d K_G`` to the
-dynamic stiffness (Ewins §2.3). Its modal ratios follow from the real modes of the
-damaged model by modal strain energy (first-order perturbation of the complex
-eigenvalue, Ungar & Kerwin 1962; Johnson & Kienholz 1982):
+dynamic stiffness (Ewins §2.3). For a delamination of a laminated shell (thesis
+§5.3.2.1) only the transverse-shear stiffness of the candidate's shells is softened
+(``part="shear"``, K_G⁰ the shear part; :mod:`identification._damage_model`), and the
+candidates are patches of shell elements (:func:`identification.shell_patches`). Its
+modal ratios follow from the real modes of the damaged model by modal strain energy
+(first-order perturbation of the complex eigenvalue, Ungar & Kerwin 1962; Johnson &
+Kienholz 1982):
 
     ζ_n^D = μ/(2ω_n^D) + κω_n^D/2 + ½ η_d φ_nᵀ K_G φ_n / φ_nᵀ K^D φ_n
 
@@ -44,14 +48,14 @@ from jaxtyping import Float, Int
 
 from jaxfem import Model
 
-from ._damage_model import _check_n_modes, _group_masks, _scan_damping, damage_damping
+from ._damage_model import PARTS, _check_n_modes, _check_part, _group_masks, _scan_damping, damage_damping
 from ._deviations import _positive, _scalar, _vector, damping_correlation, damping_deviations, fit_rayleigh
 from ._plots import plot_damage_map
 
 # the scan, and the names tests and benchmarks import from here (before the split into
 # _deviations, _damage_model and _plots they were defined here)
-__all__ = ["DamageScan", "localise_damage", "damage_damping", "damping_correlation", "damping_deviations",
-           "fit_rayleigh", "plot_damage_map"]
+__all__ = ["DamageScan", "PARTS", "localise_damage", "damage_damping", "damping_correlation",
+           "damping_deviations", "fit_rayleigh", "plot_damage_map"]
 
 
 # ----------------------------------------------------------------------------- checks
@@ -154,6 +158,8 @@ def localise_damage(
     mode_indices: Sequence[int] | None = None,
     mu: float | None = None,
     kappa: float | None = None,
+    part: str = "all",
+    first_order: bool = False,
 ) -> DamageScan:
     """Locate a single damage by correlating damping deviations, thesis §3.3.4 and §5.3.5.
 
@@ -177,6 +183,15 @@ def localise_damage(
       0, 1, … (the lowest modes, in order).
     - ``mu``, ``kappa``: Rayleigh constants; default fitted to the healthy measurement
       (:func:`fit_rayleigh`, eq. 3.40). Give both or neither.
+    - ``part``: the stiffness a candidate softens: ``"all"`` (default, the whole element
+      stiffness) or ``"shear"`` (the transverse-shear stiffness of shells only: the
+      delamination model of thesis §5.3.2.1, G_xz and G_yz reduced; candidates must then
+      be shells with shear flexibility, e.g. from :func:`identification.shell_patches`).
+    - ``first_order``: predict from the healthy modes by modal strain energy
+      (``ω_D² ≈ ω² − s φᵀK_G⁰φ``, eq. 3.40 at ω_D plus the loss term;
+      :mod:`identification._damage_model`) instead of an eigensolution per candidate: one
+      eigensolution for the whole scan, for large models and many candidates; accurate
+      while the damage shifts the frequencies little (``s φᵀK_G⁰φ ≪ ω²``).
 
     **Returns:** a :class:`DamageScan`.
     """
@@ -188,6 +203,7 @@ def localise_damage(
         raise ValueError(f"at least two modes are needed (C of one mode is always 1), got {len(f_h)}")
     idx = _mode_indices(mode_indices, len(f_h))
     _check_n_modes(model, idx)
+    part = _check_part(part)
     s = _scalar("stiffness_reduction", stiffness_reduction, 0.0, 1.0, open_high=True)
     eta = _scalar("loss_factor", loss_factor, 0.0)
     if s == 0.0 and eta == 0.0:
@@ -201,11 +217,12 @@ def localise_damage(
     if candidates is None:
         candidates = [(int(e),) for e in np.concatenate([model.beams.ids, model.rods.ids])]
         if not candidates:
-            raise ValueError("the model has no beams or rods: pass candidates explicitly")
+            raise ValueError("the model has no beams or rods: pass candidates explicitly "
+                             "(for shells: identification.shell_patches)")
     groups = tuple(tuple(int(e) for e in g) for g in candidates)
-    masks = _group_masks(model, groups)
+    masks = _group_masks(model, groups, part)
 
-    omega_h, omega_d, zeta_d = _scan_damping(model, masks, idx, s, eta, mu, kappa)
+    omega_h, omega_d, zeta_d = _scan_damping(model, masks, idx, s, eta, mu, kappa, part, bool(first_order))
     zeta_h = 0.5 * (mu / omega_h + kappa * omega_h)  # eq. 3.40
     if np.any(zeta_h <= 0):
         k = int(np.flatnonzero(zeta_h <= 0)[0])

@@ -1,5 +1,6 @@
 """Identification plots: the stabilisation diagram of :func:`identification._fitting.identify`
-and the damage map of :func:`identification._damage.localise_damage` (thesis eq. 3.45).
+and the damage maps of :func:`identification._damage.localise_damage` (thesis eq. 3.45), over
+elements (:func:`plot_damage_map`) or over shell patches (:func:`plot_shell_damage_map`).
 
 Drawn on a private Agg canvas (``matplotlib.figure.Figure``, never pyplot: no global
 backend or figure registry is touched) and written as PNG. Matplotlib is imported when a
@@ -179,6 +180,115 @@ def plot_damage_map(
     bars.set_xticks(k[::step], [str(g[0]) for g in scan.groups[::step]], fontsize=7)
     bars.set(xlabel="candidate (first element id)", ylabel="C", ylim=(0.0, 1.05))
     bars.set_title("black: located; red: true damage", fontsize=8)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, format="png")
+    return path
+
+
+def _boundary(polygons: Sequence[np.ndarray]) -> np.ndarray:
+    """Outline of a union of polygons (each (k, 2)): the edges that belong to one polygon
+    only, as segments (s, 2, 2)."""
+    count: dict[tuple, int] = {}
+    edges: dict[tuple, np.ndarray] = {}
+    for poly in polygons:
+        for a, b in zip(poly, np.roll(poly, -1, axis=0)):
+            key = tuple(sorted((tuple(np.round(a, 12)), tuple(np.round(b, 12)))))
+            count[key] = count.get(key, 0) + 1
+            edges[key] = np.array([a, b])
+    return np.array([edges[k] for k, n in count.items() if n == 1]).reshape(-1, 2, 2)
+
+
+def plot_shell_damage_map(
+    model: Model,
+    scan: DamageScan,
+    patches,
+    path: str | Path,
+    *,
+    true_elements: Sequence[int] = (),
+    title: str = "Correlation of damage-induced damping deviations, eq. 3.45",
+) -> Path:
+    """Surface map of C over the shell patches (cf. thesis Figure 5.28), as a PNG.
+
+    **Arguments:** the model; the :class:`DamageScan` of a scan over ``patches`` (a
+    :class:`identification.ShellPatches`, in the same order as ``scan.groups``); the PNG
+    ``path``; ``true_elements`` (when known) outlined in red; a title.
+
+    Top: the patches' region seen along its normal (the two axes of largest spread of the
+    element centres), each element filled with the C of the patch centred on it
+    (``at="elements"``; ``at="grids"``: the mean C of its corner grids) on a fixed 0–1
+    colour scale; the located patch outlined in black with its centre marked, other shells (e.g. stringers seen
+    edge-on) drawn grey. Bottom: per mode the measured deviations Δη_e (eq. 3.43) and the
+    located candidate's Δη_a (eq. 3.44) scaled by its least-squares factor (C does not
+    depend on the scale). The figure lives on its own Agg canvas (no pyplot state).
+
+    **Returns:** the path written.
+    """
+    from matplotlib import colormaps
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.collections import LineCollection, PolyCollection
+    from matplotlib.colors import Normalize
+
+    from ._patches import shell_centres
+
+    if len(patches.groups) != len(scan.groups) or any(
+            tuple(a) != tuple(b) for a, b in zip(patches.groups, scan.groups)):
+        raise ValueError("patches and scan differ: pass the patches whose groups were the scan's candidates")
+    ids, centres, corners = shell_centres(model)
+    region = np.isin(ids, np.unique(np.concatenate([np.asarray(g, np.int64) for g in patches.groups])))
+    spread = np.ptp(centres[region], axis=0)
+    dims = np.sort(np.argsort(-spread)[:2])
+    xyz = np.asarray(model.xyz, dtype=np.float64)
+    polys = [xyz[c[c >= 0]][:, dims] for c in corners]
+    c_of = dict(zip(np.asarray(patches.anchors).tolist(), scan.correlation.tolist()))
+    if patches.at == "elements":
+        values = np.array([c_of.get(int(e), np.nan) for e in ids])
+    else:
+        node_ids = np.asarray(model.node_ids)
+        values = np.array([np.nanmean([c_of.get(int(node_ids[n]), np.nan) for n in c[c >= 0]])
+                           if any(int(node_ids[n]) in c_of for n in c[c >= 0]) else np.nan for c in corners])
+
+    fig = _figure(8.0, 8.0)
+    grid = fig.add_gridspec(2, 1, height_ratios=(3, 2))
+    ax = fig.add_subplot(grid[0])
+    cmap = colormaps["viridis"]
+    norm = Normalize(0.0, 1.0)  # C is in [0, 1]: one scale for every map (a control looks dark)
+    inside = region & np.isfinite(values)
+    ax.add_collection(PolyCollection([polys[i] for i in np.flatnonzero(inside)],
+                                     facecolors=[cmap(norm(v)) for v in values[inside]],
+                                     edgecolors="0.85", linewidths=0.3))
+    others = np.flatnonzero(~inside)
+    if len(others):
+        ax.add_collection(PolyCollection([polys[i] for i in others], facecolors="0.9", edgecolors="0.45",
+                                         linewidths=1.5))
+    by_id = dict(zip(ids.tolist(), polys))
+    truth = [by_id[int(e)] for e in true_elements if int(e) in by_id]
+    if truth:
+        ax.add_collection(LineCollection(_boundary(truth), colors="tab:red", linewidths=2.5, label="true damage"))
+    best = scan.best
+    ax.add_collection(LineCollection(_boundary([by_id[e] for e in scan.best_group]), colors="k", linewidths=1.8,
+                                     linestyles="--", label=f"located (C = {scan.correlation[best]:.3f})"))
+    centre = np.asarray(patches.centres)[best][dims]
+    ax.plot(*centre, marker="x", color="k", markersize=9, mew=2)
+    fig.colorbar(ScalarMappable(norm, cmap), ax=ax, label="C of the patch centred here", shrink=0.8)
+    names = "xyz"
+    ax.set(xlabel=f"{names[dims[0]]} (m)", ylabel=f"{names[dims[1]]} (m)")
+    ax.autoscale()
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.margins(0.03)
+    ax.legend(loc="upper right", fontsize=8, framealpha=0.9)
+    ax.set_title(title, fontsize=10)
+
+    bars = fig.add_subplot(grid[1])
+    e, a = scan.measured, scan.predicted[best]
+    scale = float(a @ e) / float(a @ a) if float(a @ a) > 0 else 0.0
+    k = np.arange(len(e))
+    bars.bar(k - 0.2, 100 * e, width=0.4, color="tab:red", label="measured Δη_e")
+    bars.bar(k + 0.2, 100 * scale * a, width=0.4, color="k", label=f"located, Δη_a × {scale:.3g}")
+    bars.axhline(0.0, color="0.5", linewidth=0.6)
+    bars.set_xticks(k, [f"{f:.0f}" for f in scan.model_hz], rotation=60, fontsize=7)
+    bars.set(xlabel="mode (model frequency, Hz)", ylabel="damping deviation (%)")
+    bars.legend(fontsize=8)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, format="png")
