@@ -183,10 +183,9 @@ def finalize_dofs(model: Model) -> Model:
         auto_spc=dofs.labels[drop].reshape(-1, 2),
         n_dof=len(keep),
     )
-    model = eqx.tree_at(lambda m: m.dofs, model, new)
     if len(massless):
-        _check_massless_stiffness(model, massless)
-    return model
+        _check_massless_stiffness(K, keep[massless], dofs.labels)
+    return eqx.tree_at(lambda m: m.dofs, model, new)
 
 
 def _sparse_block(a: ElementMatrix, dofs: np.ndarray) -> scipy.sparse.csc_matrix:
@@ -206,11 +205,10 @@ def _sparse_block(a: ElementMatrix, dofs: np.ndarray) -> scipy.sparse.csc_matrix
                                    shape=(n, n)).tocsc()
 
 
-def _check_massless_stiffness(model: Model, massless: np.ndarray) -> None:
-    """Refuse massless DoFs whose stiffness block is singular: a sparse LU without pivoting
-    (symmetric ordering) of that block, whose pivots are all positive when it is positive
-    definite."""
-    K, _ = assemble(model)
+def _check_massless_stiffness(K: ElementMatrix, massless: np.ndarray, labels: np.ndarray) -> None:
+    """Refuse massless DoFs (rows of K) whose stiffness block is singular: a sparse LU
+    without pivoting (symmetric ordering) of that block, whose pivots are all positive
+    when it is positive definite."""
     kbb = _sparse_block(K, massless)
     scale = max(float(np.abs(kbb.diagonal()).max(initial=0.0)), np.finfo(float).tiny)
     try:
@@ -223,7 +221,7 @@ def _check_massless_stiffness(model: Model, massless: np.ndarray) -> None:
     bad = pivots <= 1e-12 * scale
     if bad.any():
         worst = massless[order[np.argsort(pivots)[: min(4, int(bad.sum()) + 3)]]]
-        labels = [tuple(int(x) for x in model.dofs.labels[i]) for i in worst]
+        labels = [tuple(int(x) for x in labels[i]) for i in worst]
         raise ValueError(
             "massless DoFs without stiffness (a mechanism): the stiffness of the DoFs that "
             f"carry no mass is singular (smallest pivot {pivots.min():.3g}, largest diagonal {scale:.3g}); "

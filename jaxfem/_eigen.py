@@ -100,7 +100,7 @@ def eigh(
                  rtol=float(rtol))
 
 
-DENSE_ARRAYS = 8  # n × n float64 arrays alive at once in the dense solve and its JVP (measured order)
+DENSE_ARRAYS = 8  # n × n float64 arrays alive at once in the dense solve and its JVP (an estimate)
 
 
 def _check_memory(n: int) -> None:

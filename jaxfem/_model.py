@@ -297,10 +297,10 @@ class Model(eqx.Module):
         rows, ids = [], []
         for block in (self.beams, self.rods, self.bushes, self.springs, self.quads, self.trias):
             nodes = np.asarray(block.nodes)
-            nn = nodes.shape[1] if nodes.ndim == 2 else 2
+            nn = nodes.shape[1]
             edges = [(a, (a + 1) % nn) for a in range(nn)] if nn > 2 else [(0, 1)]
             for a, b in edges:
-                n = nodes.reshape(-1, nn)[:, [a, b]]
+                n = nodes[:, [a, b]]
                 keep = (n >= 0).all(axis=1)
                 rows.append(n[keep])
                 ids.append(np.asarray(block.ids)[keep])

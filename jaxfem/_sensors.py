@@ -36,6 +36,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float, Inexact, Int
 
 from ._model import Model, check_float64
 from .elements import shell_frame
+from .elements._shell import QUAD_CORNERS, quad_shape
 
 METHODS = ("nearest", "interpolate")
 _AXES = "XYZ"
@@ -192,17 +193,6 @@ def _nearest_grid(model: Model, p: np.ndarray, atol: float) -> tuple[int, float]
 # ---------------------------------------------------------------------------------------
 # Projection on shell elements (all elements of one shape at once, for one point)
 
-_QUAD_CORNERS = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
-
-
-def _quad_n(xi, eta):
-    """Bilinear N (..., 4) and dN/dξ, dN/dη (..., 4) at natural coordinates (...)."""
-    c = _QUAD_CORNERS
-    a = 1 + xi[..., None] * c[:, 0]
-    b = 1 + eta[..., None] * c[:, 1]
-    return 0.25 * a * b, 0.25 * c[:, 0] * b, 0.25 * c[:, 1] * a
-
-
 def _frames(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Centroid (ne, 3) and rows x, y, n (ne, 3, 3) of the flat projected elements, from
     :func:`jaxfem.elements.shell_frame`."""
@@ -222,7 +212,8 @@ def _natural(x2: np.ndarray, p2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     q = np.zeros((ne, 2))
     converged = np.zeros(ne, dtype=bool)
     for _ in range(_NEWTON_ITERS):
-        N, dxi, deta = _quad_n(q[:, 0], q[:, 1])
+        N, dn = quad_shape(q[:, 0], q[:, 1])
+        dxi, deta = dn[:, 0], dn[:, 1]
         r = np.einsum("ek,ekd->ed", N, x2) - p2
         J = np.stack([np.einsum("ek,ekd->ed", dxi, x2), np.einsum("ek,ekd->ed", deta, x2)], axis=2)
         with np.errstate(all="ignore"):
@@ -240,7 +231,7 @@ def _natural(x2: np.ndarray, p2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _edge_natural(nn: int, a: int, t: np.ndarray) -> np.ndarray:
     """Natural coordinates of the point at fraction t along the side from corner a to a+1."""
     if nn == 4:
-        c0, c1 = _QUAD_CORNERS[a], _QUAD_CORNERS[(a + 1) % 4]
+        c0, c1 = QUAD_CORNERS[a], QUAD_CORNERS[(a + 1) % 4]
     else:
         corners = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
         c0, c1 = corners[a], corners[(a + 1) % 3]
@@ -250,7 +241,7 @@ def _edge_natural(nn: int, a: int, t: np.ndarray) -> np.ndarray:
 def _shape(nn: int, q: np.ndarray) -> np.ndarray:
     """Shape functions (ne, nn) at natural coordinates q (ne, 2)."""
     if nn == 4:
-        return _quad_n(q[:, 0], q[:, 1])[0]
+        return quad_shape(q[:, 0], q[:, 1])[0]
     return np.stack([1.0 - q[:, 0] - q[:, 1], q[:, 0], q[:, 1]], axis=1)
 
 

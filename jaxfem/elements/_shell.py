@@ -34,20 +34,21 @@ def shell_frame(xyz: Float[ArrayLike, "nn 3"]) -> Float[Array, "3 3"]:
 # Integration rules and shape functions (flat element, local x, y)
 
 _G = 1.0 / np.sqrt(3.0)
-_QUAD_CORNERS = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
-_QUAD_POINTS = _G * _QUAD_CORNERS  # 2 × 2 Gauss, weights 1
+QUAD_CORNERS = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+_QUAD_POINTS = _G * QUAD_CORNERS  # 2 × 2 Gauss, weights 1
 _TRIA_POINTS = np.array([[1 / 6, 1 / 6], [2 / 3, 1 / 6], [1 / 6, 2 / 3]])  # weights 1/6
 _TRIA_DN = np.array([[-1.0, 1.0, 0.0], [-1.0, 0.0, 1.0]])
 DRILLING = 1e-6  # drilling penalty per unit of PARAM K6ROT, relative to the membrane stiffness
 RIGID_SHEAR = 1e4  # shear stiffness of a section without shear flexibility, relative to 12·D/area
 
 
-def _quad_shape(xi: float, eta: float) -> tuple[np.ndarray, np.ndarray]:
-    """Bilinear N (4,) and dN/d(ξ, η) (2, 4) at a point."""
-    c = _QUAD_CORNERS
-    n = 0.25 * (1 + xi * c[:, 0]) * (1 + eta * c[:, 1])
-    dn = 0.25 * np.stack([c[:, 0] * (1 + eta * c[:, 1]), c[:, 1] * (1 + xi * c[:, 0])])
-    return n, dn
+def quad_shape(xi, eta) -> tuple[np.ndarray, np.ndarray]:
+    """Bilinear N (..., 4) and dN/d(ξ, η) (..., 2, 4) at natural coordinates (...),
+    corners (−1, −1), (1, −1), (1, 1), (−1, 1)."""
+    c = QUAD_CORNERS
+    a = 1 + np.asarray(xi)[..., None] * c[:, 0]
+    b = 1 + np.asarray(eta)[..., None] * c[:, 1]
+    return 0.25 * a * b, 0.25 * np.stack([c[:, 0] * b, c[:, 1] * a], axis=-2)
 
 
 def _tria_shape(r: float, s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -93,16 +94,16 @@ def _stiff_local(xy, lam, r_corner, k6rot, points, weights, shape, shear_at):
     nn = xy.shape[0]
     _, dn0 = shape(*points.mean(axis=0))
     jac0 = dn0 @ xy
-    area = sum(w * jnp.linalg.det(shape(*p)[1] @ xy) for p, w in zip(points, weights))
+    at = [(p, w, *shape(*p)) for p, w in zip(points, weights)]
+    jacs = [dn @ xy for *_, dn in at]
+    dets = [jnp.linalg.det(j) for j in jacs]
+    area = sum(w * d for (_, w, *_), d in zip(at, dets))
     rigid_s = RIGID_SHEAR * 12.0 * 0.5 * (lam.D[0, 0] + lam.D[1, 1]) / area * jnp.eye(2)
     s_mat = jnp.where(lam.rigid > 0, rigid_s, lam.S)
     extra = 4 if nn == 4 else 0
     size = 6 * nn + extra
     k = jnp.zeros((size, size))
-    for p, w in zip(points, weights):
-        n, dn = shape(*p)
-        jac = dn @ xy
-        det = jnp.linalg.det(jac)
+    for (p, w, n, dn), jac, det in zip(at, jacs, dets):
         jinv = jnp.linalg.inv(jac)
         dndx = jinv @ dn
         bm, bb = _membrane(dndx), _bending(dndx)
@@ -138,7 +139,7 @@ def _quad_shear(xy):
     """MITC4 (Dvorkin & Bathe 1984): e_ξ from the tying points (0, ±1), e_η from (±1, 0)."""
 
     def at(xi, eta):
-        n, dn = _quad_shape(xi, eta)
+        n, dn = quad_shape(xi, eta)
         return _covariant_shear(n, dn, dn @ xy)
 
     ea, ec = at(0.0, 1.0)[0], at(0.0, -1.0)[0]
@@ -192,7 +193,7 @@ def _mass_local(xy, lam, r_corner, points, weights, shape, lumped):
 
 def _rule(nn: int):
     if nn == 4:
-        return _QUAD_POINTS, np.ones(4), _quad_shape
+        return _QUAD_POINTS, np.ones(4), quad_shape
     return _TRIA_POINTS, np.full(3, 1.0 / 6.0), _tria_shape
 
 
