@@ -15,7 +15,10 @@ from ._model import STRUCTURAL_BLOCKS as STRUCTURAL_BLOCKS
 from ._model import DofMap as DofMap
 from ._model import Model as Model
 from ._model import Viscoelastic as Viscoelastic
+from ._modes import SPARSE_ABOVE as SPARSE_ABOVE
 from ._modes import modes as modes
+from ._modes import use_sparse as use_sparse
+from ._shift_invert import eigsh as eigsh
 from ._subspace import Subspace as Subspace
 from ._subspace import dense_modes as dense_modes
 from ._subspace import ritz_modes as ritz_modes

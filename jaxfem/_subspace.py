@@ -25,10 +25,11 @@ Derivative of a converged mode r (φ mass-normalised, g_r = (dK − λ_r dM) φ_
 
 with the sum over the m converged modes and z_r, M-orthogonal to them, the exact rest of
 the modal expansion: (K − λ_r M) z_r = b_r, b_r = h_r − M Φ_m Φ_mᵀ h_r,
-h_r = −g_r + dλ_r M φ_r. It is solved by preconditioned Richardson iteration with
-B⁻¹ = U (Μ_u − λ_r)⁻¹ Uᵀ + P S Pᵀ (U: the unconverged Ritz vectors, P: the
-projector M-orthogonal to the whole basis), whose error falls by about (λ_r − σ)/(λ_{q+1} − σ)
-per sweep — the forward solve's S, no new factorisation. Clusters of nearly
+h_r = −g_r + dλ_r M φ_r. It is solved by preconditioned conjugate gradients (K − λ_r M
+is positive definite on that complement) with B⁻¹ = U (Μ_u − λ_r)⁻¹ Uᵀ + P S Pᵀ (U: the
+unconverged Ritz vectors, P: the projector M-orthogonal to the whole basis), whose
+condition number is about (λ_{q+1} − σ)/(λ_{q+1} − λ_r) — the forward solve's S, no new
+factorisation. Clusters of nearly
 equal eigenvalues are handled as in :func:`jaxfem.eigh` (no rotation inside a cluster,
 dλ the cluster mean).
 """
@@ -55,8 +56,8 @@ from ._model import Opaque
 class Subspace(eqx.Module):
     """Result of :func:`subspace`: Ritz values ``lam`` (q,) ascending in (rad/s)², the
     M-orthonormal Ritz vectors ``basis`` (n, q) — the warm start of the next solve —,
-    the inverse S it used: ``solver`` is the Cholesky factor of K − σM (``exact``) or the
-    fixed preconditioner, ``converged`` (all m wanted modes passed the test),
+    the inverse S it used: ``solver`` is the Cholesky factor of K − σM (``exact``), the
+    fixed preconditioner, or a sparse factorisation (:func:`jaxfem.eigsh`), ``converged``  (all m wanted modes passed the test),
     ``residual`` (the largest test value), ``sweeps`` (inverse iterations done) and
     ``n_modes`` = m."""
 
@@ -75,6 +76,8 @@ class Subspace(eqx.Module):
 
 
 def _solve(solver, exact: bool, r):
+    if not isinstance(solver, jax.Array):  # a host factorisation (jaxfem.eigsh)
+        return solver.solve(r)
     return _lapack.cho_solve(solver, r) if exact else solver @ r
 
 
@@ -243,16 +246,29 @@ def _ritz_jvp(primals, tangents, *, solution, index, structure, rtol, refine_tol
     def operator(z):
         return K.matmul(z) - lam_r * M.matmul(z)
 
+    def ratio(num, den):
+        return jnp.where(den != 0, num / jnp.where(den != 0, den, 1.0), 0.0)
+
     def cond(carry):
-        k, _, step = carry
+        k, *_, step = carry
         return (k < max_refine) & (step > refine_tol)
 
-    def body(carry):
-        k, z, _ = carry
-        dz = precondition(b - operator(z))
+    def body(carry):  # one step of preconditioned conjugate gradients per column
+        k, z, res, p, ry, _ = carry
+        ap = operator(p)
+        alpha = ratio(ry, jnp.sum(p * ap, axis=0))
+        dz = alpha * p
+        z, res = z + dz, res - alpha * ap
+        y = precondition(res)
+        ry_new = jnp.sum(res * y, axis=0)
         scale = jnp.maximum(jnp.max(jnp.abs(z)), jnp.finfo(z.dtype).tiny)
-        return k + 1, z + dz, jnp.max(jnp.abs(dz)) / scale
+        return k + 1, z, res, y + ratio(ry_new, ry) * p, ry_new, jnp.max(jnp.abs(dz)) / scale
 
-    z0 = precondition(b)
-    _, z, _ = jax.lax.while_loop(cond, body, (jnp.asarray(0), z0, jnp.asarray(jnp.inf, z0.dtype)))
+    def solve(_, b):
+        y0 = precondition(b)
+        start = (jnp.asarray(0), jnp.zeros_like(b), b, y0, jnp.sum(b * y0, axis=0), jnp.asarray(jnp.inf, b.dtype))
+        return jax.lax.while_loop(cond, body, start)[1]
+
+    # a symmetric linear solve: transposable, so that reverse mode (jax.grad) works too
+    z = jax.lax.custom_linear_solve(operator, b, solve, symmetric=True)
     return (lam_r, phi_r), (dlam_m[index], dphi + z)

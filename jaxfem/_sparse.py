@@ -1,0 +1,284 @@
+"""Sparse storage of element-stacked matrices and sparse direct factorisations (host side).
+
+The sparsity structure of K and M is fixed by the model (NumPy): :func:`pattern` merges
+the scatter indices of both :class:`jaxfem.ElementMatrix` into one symmetric CSR
+pattern and maps every element-block entry to its slot, so that ``K − σM`` is one
+vector operation on the CSR values. Nothing here is an n × n array. The values come from
+the traced element blocks of :func:`jaxfem.assemble`; they enter through
+``jax.pure_callback`` (:mod:`jaxfem._shift_invert`), which is why this module is NumPy.
+
+Factorisations of ``K − σM``, by library:
+
+- ``"pardiso"``: Intel MKL PARDISO through the optional package ``pypardiso``
+  (``pip install "jaxfem[sparse]"``): Cholesky (``mtype`` 2) for σ below the spectrum,
+  Bunch–Kaufman LDLᵀ with iterative refinement (``mtype`` −2) otherwise.
+- ``"superlu"``: SciPy's SuperLU with the MMD ordering of AᵀA + A and symmetric mode,
+  needing nothing beyond SciPy; partial pivoting for a shift inside the spectrum.
+
+``"auto"`` takes PARDISO where it is installed and SuperLU otherwise, with a warning.
+Factorisations are cached by their matrix values (an exact comparison), so the
+eigensolver and its derivative rule share one.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import warnings
+from collections import OrderedDict
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse
+import scipy.sparse.linalg
+
+BACKENDS = ("auto", "pardiso", "superlu")
+
+
+@dataclass(frozen=True)
+class SparsePattern:
+    """Symmetric CSR pattern of n × n matrices assembled from element blocks.
+
+    ``slots[i]`` maps the entries of block array i (flattened) to CSR positions, ``nnz``
+    for padding; ``upper`` selects the entries with column ≥ row (PARDISO's half), whose
+    CSR structure is ``upper_indptr``, ``upper_indices``.
+    """
+
+    n: int
+    indptr: np.ndarray
+    indices: np.ndarray
+    slots: tuple[np.ndarray, ...]
+    upper: np.ndarray
+    upper_indptr: np.ndarray
+    upper_indices: np.ndarray
+
+    @property
+    def nnz(self) -> int:
+        return len(self.indices)
+
+    def values(self, blocks, slots) -> np.ndarray:
+        """CSR values of the sum of element blocks, each block array with its ``slots``."""
+        out = np.zeros(self.nnz + 1)
+        for slot, blk in zip(slots, blocks):
+            out += np.bincount(slot, weights=np.asarray(blk, dtype=np.float64).reshape(-1), minlength=self.nnz + 1)
+        return out[: self.nnz]
+
+    def matrix(self, data: np.ndarray) -> scipy.sparse.csr_matrix:
+        return scipy.sparse.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
+
+
+_PATTERNS: dict[tuple, SparsePattern] = {}
+_PATTERN_CACHE = 4
+
+
+def _digest(arrays) -> str:
+    h = hashlib.blake2b(digest_size=16)
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(str(a.shape).encode())
+        h.update(a.data)
+    return h.hexdigest()
+
+
+def pattern(indices: tuple[np.ndarray, ...], n: int) -> tuple[str, SparsePattern]:
+    """The pattern of the element blocks scattered at ``indices`` (each (n_el, w), ``n`` =
+    padding), cached by content; returns ``(key, pattern)``."""
+    key = _digest(indices) + f":{n}"
+    if key in _PATTERNS:
+        return key, _PATTERNS[key]
+    pieces, seen = [], {}  # K and M often share index arrays: one code array each
+    for idx in indices:
+        tag = _digest([idx])
+        if tag not in seen:
+            idx = np.asarray(idx, dtype=np.int64)
+            rows = np.broadcast_to(idx[:, :, None], idx.shape + idx.shape[1:2]).reshape(-1)
+            cols = np.broadcast_to(idx[:, None, :], idx.shape[:1] + idx.shape[1:2] + idx.shape[1:2]).reshape(-1)
+            seen[tag] = np.where((rows < n) & (cols < n), rows * (n + 1) + cols, -1)
+        pieces.append(seen[tag])
+    # the diagonal always: K − σM then has a stored entry on every row
+    codes = np.unique(np.concatenate([np.concatenate([p[p >= 0] for p in pieces]), np.arange(n) * (n + 2)]))
+    rows, cols = np.divmod(codes, n + 1)
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(rows, minlength=n), out=indptr[1:])
+    found = {}
+    for p in pieces:
+        if id(p) not in found:
+            found[id(p)] = np.where(p >= 0, np.searchsorted(codes, p), len(codes))
+    slots = tuple(found[id(p)] for p in pieces)
+    upper = np.flatnonzero(cols >= rows)
+    upper_indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(rows[upper], minlength=n), out=upper_indptr[1:])
+    pat = SparsePattern(n, indptr, cols.astype(np.int32), slots, upper, upper_indptr.astype(np.int32),
+                        cols[upper].astype(np.int32))
+    while len(_PATTERNS) >= _PATTERN_CACHE:
+        _PATTERNS.pop(next(iter(_PATTERNS)))
+    _PATTERNS[key] = pat
+    return key, pat
+
+
+def lookup(key: str) -> SparsePattern:
+    return _PATTERNS[key]
+
+
+class _Factor:
+    """A factorisation of ``A = K − σM``: ``solve(b)`` for b (n,) or (n, k)."""
+
+    backend: str
+    memory: int  # bytes held by the factor (an estimate)
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+
+class _SuperLU(_Factor):
+    backend = "superlu"
+
+    def __init__(self, pat: SparsePattern, data: np.ndarray, definite: bool):
+        a = pat.matrix(data).tocsc()
+        try:
+            if definite:
+                self._lu = scipy.sparse.linalg.splu(a, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                                                    options={"SymmetricMode": True})
+            else:
+                self._lu = scipy.sparse.linalg.splu(a, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.01)
+        except RuntimeError as e:  # "Factor is exactly singular"
+            raise _singular(str(e)) from None
+        self.memory = 12 * (self._lu.L.nnz + self._lu.U.nnz)
+        pivots = self._lu.U.diagonal()
+        scale = float(np.abs(a.diagonal()).max(initial=0.0))
+        if definite and not (pivots > 1e-13 * scale).all():
+            raise _singular(f"smallest pivot {pivots.min():.3g}, largest diagonal {scale:.3g}")
+
+    def solve(self, b):
+        return self._lu.solve(np.asarray(b, dtype=np.float64))
+
+
+class _Pardiso(_Factor):
+    """MKL PARDISO through the ctypes handle of ``pypardiso`` (its wrapper copies the
+    index arrays and checks the matrix on every solve; here they are kept)."""
+
+    backend = "pardiso"
+
+    def __init__(self, pat: SparsePattern, data: np.ndarray, definite: bool):
+        import pypardiso
+
+        self._solver = pypardiso.PyPardisoSolver(mtype=2 if definite else -2)
+        self._n = pat.n
+        self._data = np.ascontiguousarray(data[pat.upper])
+        self._ia = pat.upper_indptr.astype(np.int32) + 1  # one-based
+        self._ja = pat.upper_indices.astype(np.int32) + 1
+        self._solver.set_iparm(1, 1)  # iparm given here; the others zero = defaults
+        self._solver.set_iparm(2, 2)  # nested dissection ordering (METIS)
+        self._solver.set_iparm(8, 0 if definite else 4)  # iterative refinement for perturbed pivots
+        self._solver.set_iparm(10, 13 if definite else 8)
+        try:
+            self._call(12, np.zeros((pat.n, 1), order="F"))
+        except Exception as e:  # PyPardisoError: zero pivot, not positive definite
+            raise _singular(str(e)) from None
+        iparm = self._solver.iparm
+        self.memory = 1024 * int(max(iparm[14], iparm[15] + iparm[16]))
+
+    def _call(self, phase: int, b: np.ndarray) -> np.ndarray:
+        import ctypes
+
+        import pypardiso
+
+        s = self._solver
+        x = np.zeros_like(b)
+        error = ctypes.c_int32(0)
+        i32, f64 = ctypes.POINTER(ctypes.c_int32), ctypes.POINTER(ctypes.c_double)
+        s._mkl_pardiso(s.pt.ctypes.data_as(ctypes.POINTER(s._pt_type[0])), ctypes.byref(ctypes.c_int32(1)),
+                       ctypes.byref(ctypes.c_int32(1)), ctypes.byref(ctypes.c_int32(s.mtype)),
+                       ctypes.byref(ctypes.c_int32(phase)), ctypes.byref(ctypes.c_int32(self._n)),
+                       self._data.ctypes.data_as(f64), self._ia.ctypes.data_as(i32), self._ja.ctypes.data_as(i32),
+                       s.perm.ctypes.data_as(i32), ctypes.byref(ctypes.c_int32(b.shape[1])),
+                       s.iparm.ctypes.data_as(i32), ctypes.byref(ctypes.c_int32(0)),
+                       b.ctypes.data_as(f64), x.ctypes.data_as(f64), ctypes.byref(error))
+        if error.value != 0:
+            raise pypardiso.pardiso_wrapper.PyPardisoError(error.value)
+        return x
+
+    def solve(self, b):
+        b = np.asarray(b, dtype=np.float64)
+        x = self._call(33, np.asfortranarray(b.reshape(b.shape[0], -1)))
+        return np.ascontiguousarray(x).reshape(b.shape)
+
+    def __del__(self):
+        if getattr(self, "_solver", None) is not None:
+            try:
+                self._call(-1, np.zeros((self._n, 1), order="F"))  # release PARDISO's memory
+            except Exception:
+                pass
+
+
+def _singular(detail: str) -> ValueError:
+    return ValueError(
+        "K − σM is singular or not positive definite: the structure has a mechanism (DoFs "
+        "without stiffness that the shift does not cover, e.g. massless DoFs without stiffness), a "
+        f"negative stiffness, or NaN/inf values ({detail})"
+    )
+
+
+_warned = False
+
+
+def resolve_backend(backend: str) -> str:
+    """``"auto"`` → PARDISO if ``pypardiso`` imports, SuperLU otherwise (warned once)."""
+    global _warned
+    if backend not in BACKENDS:
+        raise ValueError(f"sparse backend must be one of {BACKENDS}, got {backend!r}")
+    if backend == "superlu":
+        return backend
+    try:
+        import pypardiso  # noqa: F401
+    except ImportError:
+        if backend == "pardiso":
+            raise ImportError("backend 'pardiso' needs pypardiso: pip install 'jaxfem[sparse]'") from None
+        if not _warned:
+            _warned = True
+            warnings.warn("pypardiso is not installed: the sparse eigensolver factorises with SciPy's "
+                          "SuperLU (slower on large models; pip install 'jaxfem[sparse]' for MKL PARDISO)",
+                          stacklevel=3)
+        return "superlu"
+    return "pardiso"
+
+
+_FACTORS: OrderedDict = OrderedDict()
+_FACTOR_MEMORY = 0.25  # fraction of physical memory that cached factors may hold
+
+
+def _memory_budget() -> float:
+    try:
+        return _FACTOR_MEMORY * os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return 4 * 2.0**30
+
+
+def factor(key: str, backend: str, k_data: np.ndarray, m_data: np.ndarray, sigma: float) -> _Factor:
+    """The factorisation of K − σM (CSR values on the pattern ``key``), cached by value."""
+    tag = (key, backend, float(sigma), k_data.shape, float(k_data @ _probe(len(k_data))),
+           float(m_data @ _probe(len(m_data))))
+    hit = _FACTORS.get(tag)
+    if hit is not None and np.array_equal(hit[1], k_data) and np.array_equal(hit[2], m_data):
+        _FACTORS.move_to_end(tag)
+        return hit[0]
+    pat = lookup(key)
+    data = k_data - sigma * m_data
+    definite = sigma < 0
+    f = (_Pardiso if backend == "pardiso" else _SuperLU)(pat, data, definite)
+    budget = _memory_budget()
+    while _FACTORS and sum(v[0].memory for v in _FACTORS.values()) + f.memory > budget:
+        _FACTORS.popitem(last=False)
+    _FACTORS[tag] = (f, k_data.copy(), m_data.copy())
+    return f
+
+
+_PROBES: dict[int, np.ndarray] = {}
+
+
+def _probe(n: int) -> np.ndarray:
+    """A fixed random vector: a fingerprint ``values @ probe`` finds cached factors fast."""
+    if n not in _PROBES:
+        _PROBES.clear()
+        _PROBES[n] = np.random.default_rng(12345).random(n)
+    return _PROBES[n]
