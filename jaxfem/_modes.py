@@ -25,22 +25,42 @@ from jaxtyping import Array, Float
 from ._assembly import assemble
 from ._eigen import DEGENERATE_RTOL, eigh
 from ._model import STIFFNESS_BLOCKS, Model
+from ._shift_invert import eigsh
 
 _NEWTON = 4  # Newton steps; quadratic convergence, |Δλ|/λ < 1e-12 after 3 for |a| ≤ 0.3
 
 
-def modes(model: Model, n_modes: int, *, n_basis: int | None = None
+SOLVERS = ("auto", "dense", "sparse")
+SPARSE_ABOVE = 5000  # DoFs above which solver="auto" takes the sparse eigensolver
+
+
+def use_sparse(model: Model, solver: str = "auto") -> bool:
+    """Whether ``solver`` (``"auto"``, ``"dense"``, ``"sparse"``) means the sparse path for
+    ``model``: ``"auto"`` takes it above :data:`SPARSE_ABOVE` DoFs, except for a
+    frequency-dependent (visco-elastic) model, which only the dense path solves."""
+    if solver not in SOLVERS:
+        raise ValueError(f"eigensolver must be one of {', '.join(SOLVERS)}, got {solver!r}")
+    if solver == "sparse" and model.viscoelastic is not None:
+        raise ValueError("a frequency-dependent (visco-elastic) model needs the dense eigensolver")
+    return solver == "sparse" or (solver == "auto" and model.viscoelastic is None and model.n_dof > SPARSE_ABOVE)
+
+
+def modes(model: Model, n_modes: int, *, n_basis: int | None = None, solver: str = "auto"
           ) -> tuple[Float[Array, " m"], Float[Array, "n m"]]:
     """Eigenvalues λ (rad/s)² and mass-normalised mode shapes of ``model``.
 
-    **Arguments:** the model, the number of lowest modes, and for a frequency-dependent
+    **Arguments:** the model, the number of lowest modes, for a frequency-dependent
     model the Ritz basis size (default ``n_modes + 10``, at most all modes; enriched
-    with static corrections, see ``_enrich``).
+    with static corrections, see ``_enrich``), and the eigensolver: ``"dense"``
+    (:func:`jaxfem.eigh`, all modes), ``"sparse"`` (:func:`jaxfem.eigsh`, shift-invert
+    Lanczos) or ``"auto"`` (sparse above :data:`SPARSE_ABOVE` DoFs, see :func:`use_sparse`).
     **Returns:** ``(λ, φ)`` as :func:`jaxfem.eigh`; differentiable in every model value,
     including the law's ``a`` and ``f_ref``.
     """
     K, M = assemble(model)
     law = model.viscoelastic
+    if use_sparse(model, solver):
+        return eigsh(K, M, n_modes)
     if law is None:
         return eigh(K, M, n_modes)
     n_free = K.n - len(M.massless)

@@ -80,10 +80,12 @@ class DiagnoseOptions:
     cross-validated with ``folds`` folds over the test modes. Every fit is the engine's
     Levenberg–Marquardt loop (:mod:`updating._engine`), converged when no factor changes
     by more than ``tolerance`` relative (|Δ ln factor|), at most ``max_steps`` steps.
+    ``eigensolver``: as the updating option (``auto``: the parameters' own).
     """
 
     noise_freq: float = 0.002
     noise_shape: float = 0.01
+    eigensolver: str = "auto"
     folds: int = 4
     region: float = 0.3
     max_nodes: int = 30
@@ -141,7 +143,8 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     w_lam = options.noise_shape / (np.sqrt(ns) * 2 * options.noise_freq)  # σ_φ-per-component / σ_λ
     sigma2 = (options.noise_shape / np.sqrt(ns)) ** 2
     # a weak prior (one noise unit at a factor e³ ≈ 20) keeps unidentifiable factors finite
-    pset = ParameterSet(params, Options(eigenvalue_weight=w_lam, regularisation=sigma2 / 9,
+    solver = options.eigensolver if options.eigensolver != "auto" or not parameters else parameters.options.eigensolver
+    pset = ParameterSet(params, Options(eigenvalue_weight=w_lam, regularisation=sigma2 / 9, eigensolver=solver,
                                         n_model_modes=parameters.options.n_model_modes if parameters else None))
     masks = fold_masks(ne, options.folds)
     fits = Fits(options.settings)

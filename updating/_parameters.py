@@ -90,6 +90,7 @@ class Options:
     ``eigenvector`` or ``combined`` (§3.2.2). ``eigenvalue_weight``: ``"auto"`` (§5.2.4)
     or a number. ``regularisation``: μ of W_p = μ I (eq. 3.4) on θ. ``tolerance``:
     convergence when max |Δα| ≤ tolerance between iterations (§4.2.5.1, footnote 8).
+    ``eigensolver``: ``auto``, ``dense`` or ``sparse`` (:func:`jaxfem.modes`).
     """
 
     active_modes: tuple[int, ...] | None = None
@@ -103,6 +104,7 @@ class Options:
     min_mac: float = 0.65
     max_freq_dev: float = 0.30
     n_model_modes: int | None = None
+    eigensolver: str = "auto"
 
     def __post_init__(self):
         if self.residual not in ("eigenvalue", "eigenvector", "combined"):
@@ -111,6 +113,8 @@ class Options:
             raise ValueError(f"options.solver {self.solver!r}: levenberg-marquardt | gauss-newton")
         if self.eigenvalue_weight != "auto" and not float(self.eigenvalue_weight) > 0:
             raise ValueError("options.eigenvalue_weight must be 'auto' or a positive number")
+        if self.eigensolver not in ("auto", "dense", "sparse"):
+            raise ValueError(f"options.eigensolver {self.eigensolver!r}: auto | dense | sparse")
         if self.regularisation < 0 or self.tolerance <= 0 or self.max_iterations < 1:
             raise ValueError("options: regularisation ≥ 0, tolerance > 0, max_iterations ≥ 1")
 

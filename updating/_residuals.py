@@ -33,7 +33,8 @@ class Problem(eqx.Module):
     - ``lam_e`` (n_e,): measured eigenvalues (2π f)² in (rad/s)²; ``phi_e`` (n_s, n_e):
       real measured shapes at the sensors; ``C`` (n_s, n_dof): observation matrix;
     - ``active`` (n_e,) bool: modes in the fit; ``lam_weight`` (n_e,): eigenvalue-row
-      weights; ``mu``: regularisation; ``use_lam``/``use_phi``: residual kinds.
+      weights; ``mu``: regularisation; ``use_lam``/``use_phi``: residual kinds;
+      ``solver``: the eigensolver of :func:`jaxfem.modes`.
     """
 
     values: Model
@@ -50,6 +51,7 @@ class Problem(eqx.Module):
     use_phi: bool = eqx.field(static=True)
     min_mac: float = eqx.field(static=True)
     max_freq_dev: float = eqx.field(static=True)
+    solver: str = eqx.field(static=True, default="auto")  # eigensolver of jaxfem.modes
     extension: eqx.Module | None = None  # a candidate effect's parameters (updating._effects.Extension)
 
     def model(self, theta: Float[Array, " p"]) -> Model:
@@ -73,7 +75,7 @@ class Evaluation(eqx.Module):
 
 def model_modes(theta: Float[Array, " p"], problem: Problem):
     """Eigenvalues of the model at θ and its shapes at the sensors, ``(λ, C φ)``."""
-    lam, phi = jaxfem.modes(problem.model(theta), problem.n_model)
+    lam, phi = jaxfem.modes(problem.model(theta), problem.n_model, solver=problem.solver)
     return lam, problem.C @ phi
 
 

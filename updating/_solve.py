@@ -66,6 +66,7 @@ def build_problem(model: Model, test: ModalData, parameters: ParameterSet,
         use_phi=opts.residual in ("eigenvector", "combined"),
         min_mac=float(opts.min_mac),
         max_freq_dev=float(opts.max_freq_dev),
+        solver=opts.eigensolver,
     )
     theta0 = jnp.zeros(len(param.parameters))
     if opts.residual == "combined":

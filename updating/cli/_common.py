@@ -20,6 +20,10 @@ TestArg = Annotated[Path, typer.Argument(metavar="TEST.uff", exists=True, dir_ok
                                          help="universal file with the measured modes (dataset 55)")]
 JsonOut = Annotated[Path, typer.Option("--json", help="write results as JSON")]
 PlotsOut = Annotated[Path | None, typer.Option("--plots", help="directory for PNG plots")]
+SolverOpt = Annotated[str | None, typer.Option(
+    "--solver", metavar="dense|sparse",
+    help="eigensolver: dense (all modes) or sparse (lowest modes, shift-invert Lanczos); "
+         "default: the parameter file's, else sparse above 5,000 DoFs")]
 
 
 def fail(message: str) -> NoReturn:
@@ -84,19 +88,32 @@ def load_test(path: Path):
     return read_dataset(path, "modes", "mode shapes", 55).real()
 
 
-def load_inputs(model_path: Path, test_path: Path, params_path: Path | None = None):
+def check_solver(solver: str | None) -> str:
+    """``--solver``: ``dense`` or ``sparse`` (None: ``auto``); exit 2 otherwise."""
+    if solver not in (None, "dense", "sparse", "auto"):
+        fail(f"--solver {solver!r}: dense | sparse")
+    return solver or "auto"
+
+
+def load_inputs(model_path: Path, test_path: Path, params_path: Path | None = None, solver: str | None = None):
     """Model, real test modes, observation matrix and the parameter set (None without a
-    file), checked against each other; on bad input exit 2 naming the file."""
+    file; ``solver``, from ``--solver``, overrides its eigensolver), checked against each
+    other; on bad input exit 2 naming the file."""
+    from dataclasses import replace
+
     from identification import observation_matrix
 
     from .._parameters import ParameterSet, parameterise
 
     params = None
+    check_solver(solver)
     if params_path is not None:
         try:
             params = ParameterSet.from_toml(params_path)
         except (ValueError, OSError) as err:
             fail(f"bad parameter file: {err}")
+        if solver is not None:
+            params = replace(params, options=replace(params.options, eigensolver=solver))
     model = load_model(model_path)
     test = load_test(test_path)
     try:

@@ -18,6 +18,8 @@ from ._common import (
     load_inputs,
     mode_labels,
     print_pairing,
+    SolverOpt,
+    check_solver,
     write_json,
 )
 
@@ -31,6 +33,7 @@ def correlate(
                                           help="model modes to compute (default: twice the test modes, at least 6 spare; as n_model_modes)")] = None,
     min_mac: Annotated[float, typer.Option("--min-mac", help="pairing threshold on MAC")] = 0.65,
     max_freq_dev: Annotated[float, typer.Option("--max-freq-dev", help="pairing threshold on |Δf| (fraction)")] = 0.30,
+    solver: SolverOpt = None,
 ) -> None:
     """Correlate model and test modes: pairing by MAC and Δf, AutoMAC, COMAC."""
     import jaxfem
@@ -42,7 +45,7 @@ def correlate(
     model, test, C, _ = load_inputs(model_path, test_path)
     ne = test.n_modes
     n_model = n_model_modes(model, ne, n)
-    lam, phi = jaxfem.modes(model, n_model)
+    lam, phi = jaxfem.modes(model, n_model, solver=check_solver(solver))
     f_a, phi_a = np.asarray(jaxfem.frequencies_hz(lam)), C @ np.asarray(phi)
     f_e, phi_e = np.asarray(test.frequencies_hz), np.asarray(test.shapes)
     try:

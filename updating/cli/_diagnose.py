@@ -8,7 +8,8 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from ._common import ModelArg, TestArg, check_plots, fail, frf_prediction, load_inputs, mode_labels, write_json
+from ._common import (ModelArg, SolverOpt, TestArg, check_plots, check_solver, fail, frf_prediction, load_inputs,
+                      mode_labels, write_json)
 
 
 def _fmt(x, spec: str) -> str:
@@ -136,6 +137,7 @@ def diagnose(
                                                   help="measured FRFs (UFF 58) predicted before/after")] = None,
     noise_freq: Annotated[float, typer.Option("--noise-freq", help="expected frequency error, % (1σ)")] = 0.2,
     noise_shape: Annotated[float, typer.Option("--noise-shape", help="expected shape error per component, % (1σ)")] = 1.0,
+    solver: SolverOpt = None,
 ) -> None:
     """Where does the model fail, and which physical effect is missing? Localise the error,
     rank candidate effects by Bayesian evidence, test the most probable on held-out modes,
@@ -143,10 +145,11 @@ def diagnose(
     from .._diagnose import DiagnoseOptions
 
     check_plots(report)
-    model, test, _, params = load_inputs(model_path, test_path, params_path)
+    model, test, _, params = load_inputs(model_path, test_path, params_path, solver)
     if not (noise_freq > 0 and noise_shape > 0):
         fail("--noise-freq and --noise-shape must be positive (percent)")
-    options = DiagnoseOptions(noise_freq=noise_freq / 100, noise_shape=noise_shape / 100)
+    options = DiagnoseOptions(noise_freq=noise_freq / 100, noise_shape=noise_shape / 100,
+                              eigensolver=check_solver(solver))
     diagnosis(model, test, params, model_name=model_path.name, test_name=test_path.name, json_out=json_out,
               report=report, frf_path=frf_path, options=options)
 

@@ -7,28 +7,33 @@ from typing import Annotated
 
 import typer
 
-from ._common import write_json
+from ._common import SolverOpt, check_solver, write_json
 
 LARGE = 5000  # DoFs above which the dense solve's time and memory are announced
 
 
-def _modes_table(path: Path, n_modes: int) -> dict:
+def _modes_table(path: Path, n_modes: int, solver: str = "auto") -> dict:
+    import time
+
     import jaxfem
     from jaxfem.io import read_bdf
 
     bulk = read_bdf(path)
     model = jaxfem.build_model(bulk)
-    n_modes = min(n_modes, model.n_dof - len(model.dofs.massless))
-    if model.n_dof > LARGE:
+    sparse = jaxfem.use_sparse(model, solver)
+    n_modes = min(n_modes, model.n_dof - len(model.dofs.massless) - (2 if sparse else 0))
+    if model.n_dof > LARGE and not sparse:
         minutes = 100.0 / 60.0 * (model.n_dof / 6500) ** 3  # n³ from 6,500 DoFs ≈ 100 s measured on 2 cores
         typer.echo(f"note: {model.n_dof} DoFs: the dense eigensolver computes every mode, about "
                    f"{minutes:.0f} min on 2 cores and {8 * 8 * model.n_dof**2 / 2**30:.0f} GiB", err=True)
-    K, M = jaxfem.assemble(model)
-    lam, _ = jaxfem.eigh(K, M, n_modes)
+    start = time.perf_counter()
+    lam, _ = jaxfem.modes(model, n_modes, solver="sparse" if sparse else "dense")
     freqs = [float(f) for f in jaxfem.frequencies_hz(lam)]
     return {
         "model": str(path),
         "n_dof": int(model.n_dof),
+        "eigensolver": "sparse" if sparse else "dense",
+        "solve_seconds": time.perf_counter() - start,
         "n_massless": len(model.dofs.massless),
         "auto_spc": [[int(a), int(b)] for a, b in model.dofs.auto_spc],
         "unknown_cards": sorted(bulk.unknown),
@@ -39,7 +44,8 @@ def _modes_table(path: Path, n_modes: int) -> dict:
 
 def _print_table(result: dict) -> None:
     typer.echo(f"model {result['model']}: {result['n_dof']} DoFs after constraints "
-               f"({result['n_massless']} massless, condensed; {len(result['auto_spc'])} auto-SPC)")
+               f"({result['n_massless']} massless, condensed; {len(result['auto_spc'])} auto-SPC); "
+               f"{result['eigensolver']} eigensolver, {result['solve_seconds']:.1f} s")
     if result["unknown_cards"]:
         typer.echo(f"warning: unsupported cards ignored: {', '.join(result['unknown_cards'])}", err=True)
     typer.echo(f"{'mode':>5}  {'f [Hz]':>12}  {'λ = ω² [rad²/s²]':>18}")
@@ -51,9 +57,10 @@ def modes(
     model: Annotated[Path, typer.Argument(exists=True, dir_okay=False, help="Nastran bulk data (SI units)")],
     n: Annotated[int, typer.Option("-n", "--n-modes", help="number of modes")] = 10,
     json_out: Annotated[Path | None, typer.Option("--json", help="write results as JSON")] = None,
+    solver: SolverOpt = None,
 ) -> None:
     """Natural frequencies of a bulk-data model."""
-    result = _modes_table(model, n)
+    result = _modes_table(model, n, check_solver(solver))
     _print_table(result)
     if json_out:
         write_json(json_out, result)

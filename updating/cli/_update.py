@@ -19,6 +19,7 @@ from ._common import (
     frf_prediction,
     load_inputs,
     mode_labels,
+    SolverOpt,
     write_json,
 )
 
@@ -123,6 +124,7 @@ def update(
         "--add-effect", metavar="KIND:TARGET",
         help="add a physical effect and update its parameters too, e.g. joint:node=6001, "
              "added_mass:node=2015, frequency_dependent_stiffness:pid=41 (repeatable)")] = None,
+    solver: SolverOpt = None,
 ) -> None:
     """Update model parameters so that the model modes match the test modes.
 
@@ -137,7 +139,7 @@ def update(
     from .._solve import update as run_update
 
     check_plots(plots)
-    model, test, _, params = load_inputs(model_path, test_path, params_path)
+    model, test, _, params = load_inputs(model_path, test_path, params_path, solver)
     last = {}
 
     def progress(it) -> None:
