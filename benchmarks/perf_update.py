@@ -40,7 +40,7 @@ from jaxfem.io import read_bdf, read_bdf_text  # noqa: E402
 from updating import Options, Parameter, ParameterSet, build_problem, parameterise, simulate_test  # noqa: E402
 from updating import _engine  # noqa: E402
 from updating._compiled import Compiled  # noqa: E402
-from updating._eigensolvers import Dense  # noqa: E402
+from updating._eigensolvers import Direct  # noqa: E402
 from updating._engine import Settings  # noqa: E402
 
 
@@ -76,7 +76,7 @@ def jaxfem_step(problem, n_p):
     settings = Settings(False, 1e-3, 1, 1)
     run = Compiled(_engine.run)
     theta = jnp.zeros(n_p)
-    return lambda: run(theta, problem, Dense(), jnp.zeros(0), settings).solver
+    return lambda: run(theta, problem, Direct(), jnp.zeros(0), settings).solver
 
 
 def scipy_iteration(K0, Ki, M, C, test, weights, n_model, damping=1e-3):

@@ -19,6 +19,7 @@ from ._modes import SPARSE_ABOVE as SPARSE_ABOVE
 from ._modes import modes as modes
 from ._modes import use_sparse as use_sparse
 from ._shift_invert import eigsh as eigsh
+from ._shift_invert import sparse_modes as sparse_modes
 from ._subspace import Subspace as Subspace
 from ._subspace import dense_modes as dense_modes
 from ._subspace import ritz_modes as ritz_modes

@@ -88,20 +88,33 @@ def eigsh(K, M, n_modes: int, *, n_extra: int | None = None, sigma: float | None
     - ``K``, ``M``: :class:`jaxfem.ElementMatrix` from :func:`jaxfem.assemble`
       (massless DoFs allowed; ``K − σM`` must be nonsingular).
     - ``n_modes``: m, the number of lowest modes returned.
-    - ``n_extra``: further modes computed for the derivative's expansion and for clusters
-      at the m-th mode (default ``max(4, m // 4)``).
-    - ``sigma``: the shift σ in (rad/s)², below the lowest eigenvalue (default
-      −10⁻³·min K_ii/M_ii: negative, so that free structures are covered).
-    - ``backend``: ``"auto"``, ``"pardiso"`` or ``"superlu"`` (:mod:`jaxfem._sparse`).
+    - ``n_extra``, ``sigma``, ``backend``: as :func:`sparse_modes`.
     - ``rtol``: relative threshold of clusters, as :func:`jaxfem.eigh`.
 
     **Returns:** ``(λ, Φ)`` as :func:`jaxfem.eigh`: λ = ω² ascending, Φ mass-normalised,
     each column's largest-magnitude component positive. Forward- and reverse-mode
     derivatives are exact (module documentation).
     """
+    sol = sparse_modes(K, M, n_modes, n_extra=n_extra, sigma=sigma, backend=backend)
+    return ritz_modes(K, M, sol, jnp.arange(int(n_modes)), rtol=rtol)
+
+
+def sparse_modes(K, M, n_modes: int, *, n_extra: int | None = None, sigma: float | None = None,
+                 backend: str = "auto") -> Subspace:
+    """The lowest ``n_modes`` + ``n_extra`` modes by shift-invert Lanczos, as a
+    :class:`jaxfem.Subspace` whose inverse is the sparse factorisation, for
+    :func:`jaxfem.ritz_modes` (no derivative flows through it).
+
+    **Arguments:** ``K``, ``M`` as :func:`eigsh`; ``n_extra``: further modes, for the
+    derivative's expansion and for clusters at the last wanted mode (default
+    ``max(4, n_modes // 4)``); ``sigma``: the shift σ in (rad/s)², below the lowest
+    eigenvalue (default −10⁻³·min K_ii/M_ii: negative, so that free structures are
+    covered); ``backend``: ``"auto"``, ``"pardiso"`` or ``"superlu"`` (:mod:`jaxfem._sparse`).
+    """
     K, M = _operator("K", K), _operator("M", M)
     if not (isinstance(K, ElementMatrix) and isinstance(M, ElementMatrix)):
-        raise TypeError("jaxfem.eigsh needs element-stacked matrices (jaxfem.assemble); use jaxfem.eigh for arrays")
+        raise TypeError("the sparse eigensolver needs element-stacked matrices (jaxfem.assemble); "
+                        "use jaxfem.eigh for arrays")
     if K.n != M.n:
         raise ValueError(f"K is {K.n}×{K.n} but M is {M.n}×{M.n}")
     n_free = M.n - len(M.massless)
@@ -110,7 +123,7 @@ def eigsh(K, M, n_modes: int, *, n_extra: int | None = None, sigma: float | None
     q = min(m + extra, n_free - 1)
     if not 1 <= m <= q:
         raise ValueError(f"n_modes must be in 1..{n_free - 2} for the sparse solver ({n_free} DoFs with mass), got {m}")
-    key, pat = _sparse.pattern(tuple(K.indices) + tuple(M.indices), K.n)
+    key, _ = _sparse.pattern(tuple(K.indices) + tuple(M.indices), K.n)
     backend = _sparse.resolve_backend(backend)
     n_k = len(K.blocks)
     blocks = jax.lax.stop_gradient(tuple(K.blocks) + tuple(M.blocks))
@@ -123,8 +136,7 @@ def eigsh(K, M, n_modes: int, *, n_extra: int | None = None, sigma: float | None
 
     sig, lam, V = jax.pure_callback(host, shape, *blocks, vmap_method="sequential")
     inverse = SparseInverse(blocks[:n_k], blocks[n_k:], sig, key, backend, n_k)
-    sol = Subspace(lam, V, inverse, jnp.asarray(True), jnp.zeros(()), jnp.zeros((), jnp.int32), q)
-    return ritz_modes(K, M, sol, jnp.arange(m), rtol=rtol)
+    return Subspace(lam, V, inverse, jnp.asarray(True), jnp.zeros(()), jnp.zeros((), jnp.int32), q)
 
 
 def _host_modes(key, backend, sigma, q, blocks, n_k):

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import threading
 import warnings
 from collections import OrderedDict
 from dataclasses import dataclass
@@ -67,8 +68,9 @@ class SparsePattern:
         return scipy.sparse.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
 
 
-_PATTERNS: dict[tuple, SparsePattern] = {}
+_PATTERNS: dict[str, SparsePattern] = {}
 _PATTERN_CACHE = 4
+_LOCK = threading.RLock()  # callbacks of several devices (shard_map) may run at once
 
 
 def _digest(arrays) -> str:
@@ -84,8 +86,15 @@ def pattern(indices: tuple[np.ndarray, ...], n: int) -> tuple[str, SparsePattern
     """The pattern of the element blocks scattered at ``indices`` (each (n_el, w), ``n`` =
     padding), cached by content; returns ``(key, pattern)``."""
     key = _digest(indices) + f":{n}"
-    if key in _PATTERNS:
+    with _LOCK:
+        if key not in _PATTERNS:
+            _PATTERNS[key] = _pattern(indices, n)
+            while len(_PATTERNS) > _PATTERN_CACHE:
+                _PATTERNS.pop(next(iter(_PATTERNS)))
         return key, _PATTERNS[key]
+
+
+def _pattern(indices, n) -> SparsePattern:
     pieces, seen = [], {}  # K and M often share index arrays: one code array each
     for idx in indices:
         tag = _digest([idx])
@@ -108,12 +117,8 @@ def pattern(indices: tuple[np.ndarray, ...], n: int) -> tuple[str, SparsePattern
     upper = np.flatnonzero(cols >= rows)
     upper_indptr = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(np.bincount(rows[upper], minlength=n), out=upper_indptr[1:])
-    pat = SparsePattern(n, indptr, cols.astype(np.int32), slots, upper, upper_indptr.astype(np.int32),
-                        cols[upper].astype(np.int32))
-    while len(_PATTERNS) >= _PATTERN_CACHE:
-        _PATTERNS.pop(next(iter(_PATTERNS)))
-    _PATTERNS[key] = pat
-    return key, pat
+    return SparsePattern(n, indptr, cols.astype(np.int32), slots, upper, upper_indptr.astype(np.int32),
+                         cols[upper].astype(np.int32))
 
 
 def lookup(key: str) -> SparsePattern:
@@ -256,6 +261,11 @@ def _memory_budget() -> float:
 
 def factor(key: str, backend: str, k_data: np.ndarray, m_data: np.ndarray, sigma: float) -> _Factor:
     """The factorisation of K − σM (CSR values on the pattern ``key``), cached by value."""
+    with _LOCK:
+        return _factor(key, backend, k_data, m_data, sigma)
+
+
+def _factor(key, backend, k_data, m_data, sigma):
     tag = (key, backend, float(sigma), k_data.shape, float(k_data @ _probe(len(k_data))),
            float(m_data @ _probe(len(m_data))))
     hit = _FACTORS.get(tag)

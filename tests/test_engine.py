@@ -14,7 +14,7 @@ from jaxfem.io import read_bdf_text
 from updating import Noise, Options, Parameter, ParameterSet, build_problem, n_model_modes, parameterise, \
     perturb, simulate_test
 from updating._compiled import Compiled
-from updating._eigensolvers import Dense
+from updating._eigensolvers import Direct
 from updating._engine import Settings, run
 from updating._qr import HouseholderQR
 from updating._residuals import residuals
@@ -40,7 +40,7 @@ def test_run_converges_and_keeps_its_history(frame):
     model, pset, truth, sensors = frame
     problem = build_problem(model, simulate_test(truth, sensors, 6), pset)
     settings = Settings.from_options(pset.options)
-    state = Compiled(run)(jnp.zeros(3), problem, Dense(), jnp.zeros(0), settings)
+    state = Compiled(run)(jnp.zeros(3), problem, Direct(), jnp.zeros(0), settings)
     assert bool(state.converged) and state.theta.dtype == jnp.float64
     n = int(state.accepted)
     np.testing.assert_allclose(np.expm1(state.theta), ALPHA, rtol=1e-7)
@@ -58,7 +58,7 @@ def test_run_converges_and_keeps_its_history(frame):
 def test_iteration_cap_is_not_convergence(frame):
     model, pset, truth, sensors = frame
     problem = build_problem(model, simulate_test(truth, sensors, 6), pset)
-    state = Compiled(run)(jnp.zeros(3), problem, Dense(), jnp.zeros(0), Settings(True, 1e-12, 2, 8))
+    state = Compiled(run)(jnp.zeros(3), problem, Direct(), jnp.zeros(0), Settings(True, 1e-12, 2, 8))
     assert int(state.accepted) == 2 and not bool(state.converged)
 
 
@@ -74,7 +74,7 @@ def test_vmapped_runs_equal_single_runs(frame, key):
 
     def one(lam_e, phi_e, problem):
         p = eqx.tree_at(lambda q: (q.lam_e, q.phi_e), problem, (lam_e, phi_e))
-        return run(jnp.zeros(3), p, Dense(), jnp.zeros(0), settings).theta
+        return run(jnp.zeros(3), p, Direct(), jnp.zeros(0), settings).theta
 
     batched = Compiled(jax.vmap(one, in_axes=(0, 0, None)))(lam, phi, problem)
     single = [Compiled(one)(lam[i], phi[i], problem) for i in range(2)]

@@ -141,3 +141,19 @@ def test_subspace_samples_equal_full_solves():
     assert np.all(sub["status"] == 0) and np.all(np.asarray(ref.converged))
     assert np.all(sub["iterations"] < np.asarray(ref.iterations))  # started from the error-free update
     np.testing.assert_allclose(sub["alpha"], np.expm1(np.asarray(ref.theta)), rtol=0, atol=1e-8)
+
+
+def test_sparse_samples_sharded_over_four_devices_equal_subspace_samples():
+    """Issue 16: every evaluation by the sparse solver (jaxfem.eigsh through host
+    callbacks, on the 4 host devices at once) gives the factors of the dense subspace
+    solves within 1e-8."""
+    from updating import Options
+    from updating._montecarlo import tree_parameters
+
+    study = default_study(1, n_modes=(3,), samples=2, chunk_size=2, errors=(("relative", (0.05,)),),
+                          parameters=tree_parameters(Options(tolerance=1e-9, max_iterations=30,
+                                                             solver="gauss-newton")))
+    sub = Runner(study, devices=jax.devices()[:1]).chunk(3, 0, 2)
+    sparse = Runner(dataclasses.replace(study, eigensolver="sparse")).chunk(3, 0, 2)
+    assert np.all(sparse["status"] == 0)
+    np.testing.assert_allclose(sparse["alpha"], sub["alpha"], rtol=0, atol=1e-8)

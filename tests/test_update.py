@@ -157,3 +157,16 @@ def test_updates_release_their_compiled_code(setup):
         _update(model, params[:1], test, max_iterations=2)
     gc.collect()
     assert _memory_maps() - before < 60  # measured: +12 over three updates; +1100 per update when the code was kept
+
+
+def test_sparse_eigensolver_gives_the_dense_update(setup):
+    """Issue 16: the same update with options.eigensolver = "sparse" (shift-invert Lanczos,
+    derivatives of the paired modes only) and "dense": equal factors and histories."""
+    model, params, _, f, shapes, sensors = setup
+    test = ModalData(f, shapes, sensors)
+    dense = _update(model, params, test, eigensolver="dense")
+    sparse = _update(model, params, test, eigensolver="sparse")
+    assert dense.converged and sparse.converged and sparse.iterations == dense.iterations
+    np.testing.assert_allclose(sparse.alpha, dense.alpha, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(sparse.alpha, TRUE_ALPHA, rtol=1e-6)
+    np.testing.assert_allclose([h.cost for h in sparse.history], [h.cost for h in dense.history], rtol=1e-6, atol=1e-20)

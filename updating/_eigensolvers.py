@@ -7,14 +7,17 @@ pairing carries no derivative), the next warm start and two flags: the solve con
 and it needed a fresh preconditioner. Derivatives of the paired modes are exact
 (implicit differentiation, thesis eq. 3.23, eq. 3.28, eq. 3.29).
 
-- :class:`Dense`: all modes by ``jaxfem.modes`` (LAPACK ``eigh``; massless DoFs condensed;
-  frequency-dependent stiffness). The default of ``update`` and ``diagnose``.
+- :class:`Direct`: the problem's own eigensolver (:func:`updating._residuals.evaluate`):
+  dense (``jaxfem.modes``: LAPACK ``eigh``, all modes; massless DoFs condensed;
+  frequency-dependent stiffness) or sparse (``jaxfem.sparse_modes``, the lowest modes,
+  derivatives of the paired ones by ``jaxfem.ritz_modes``). The default of ``update``
+  and ``diagnose``.
 - :class:`Refined`: all modes by ``jaxfem.dense_modes`` (K-standardised, refined to
   rounding), derivatives of the paired ones by ``jaxfem.ritz_modes``.
 - :class:`Subspace`: the lowest modes by ``jaxfem.subspace``, warm-started from the last
   iterate and preconditioned with a fixed (K − σM)⁻¹ of a nearby model (Monte-Carlo).
 
-A new solver (e.g. sparse shift-invert) subclasses :class:`AbstractEigensolver`.
+A new solver subclasses :class:`AbstractEigensolver`.
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ from jaxtyping import Array, Bool, Float
 
 import jaxfem
 
-from ._residuals import Evaluation, Problem, evaluate, pair, paired_evaluation
+from ._residuals import Evaluation, Problem, evaluate, paired_subspace
 
 LOCKSTEP = "lockstep"  # vmap axis name of samples updated together (Monte-Carlo)
 
@@ -42,21 +45,11 @@ class AbstractEigensolver(eqx.Module):
         """``(evaluation, next warm start, converged, refreshed)``."""
 
 
-class Dense(AbstractEigensolver):
-    """All modes by :func:`jaxfem.modes`; no warm start."""
+class Direct(AbstractEigensolver):
+    """The problem's own eigensolver (dense or sparse, ``problem.solver``); no warm start."""
 
     def __call__(self, theta, problem, warm):
         return evaluate(theta, problem), warm, jnp.asarray(True), jnp.asarray(False)
-
-
-def _paired(K, M, sol, problem: Problem) -> Evaluation:
-    """Pair the solve's lowest ``n_model`` modes, then differentiate only the paired ones."""
-    phi_s = problem.C @ sol.basis[:, : problem.n_model]
-    lam = sol.lam[: problem.n_model]
-    index, paired = pair(lam, phi_s, problem)
-    safe = jnp.where(paired, index, 0)
-    lam_a, phi_a = jaxfem.ritz_modes(K, M, sol, safe)
-    return paired_evaluation(lam_a, problem.C @ phi_a, index, paired, lam, phi_s, problem)
 
 
 class Refined(AbstractEigensolver):
@@ -67,7 +60,7 @@ class Refined(AbstractEigensolver):
     def __call__(self, theta, problem, warm):
         K, M = jaxfem.assemble(problem.model(theta))
         sol = jaxfem.dense_modes(K, M, problem.n_model, shift=self.shift)
-        return _paired(K, M, sol, problem), warm, jnp.asarray(True), jnp.asarray(False)
+        return paired_subspace(K, M, sol, problem), warm, jnp.asarray(True), jnp.asarray(False)
 
 
 class Subspace(AbstractEigensolver):
@@ -91,4 +84,4 @@ class Subspace(AbstractEigensolver):
         sol = jax.lax.cond(anywhere,
                            lambda: solve(sol.basis, jaxfem.shifted_inverse(Ks, Ms, shift=self.shift)),
                            lambda: sol)
-        return _paired(K, M, sol, problem), sol.basis, sol.converged, refreshed
+        return paired_subspace(K, M, sol, problem), sol.basis, sol.converged, refreshed

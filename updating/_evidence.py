@@ -36,7 +36,7 @@ import numpy as np
 from ._candidates import Candidate
 from ._compiled import Compiled
 from ._effects import SCAN
-from ._eigensolvers import Dense
+from ._eigensolvers import Direct
 from ._engine import Settings, linearise, run
 from ._extension import Extension
 from ._report import rms_pct
@@ -61,8 +61,8 @@ def _solve_one(theta0, problem: Problem, settings: Settings, skip):
     """One fit by the engine (``skip``: none, evaluate at θ₀); at its θ the fitted and
     held-out costs (frequency, shape), the paired eigenvalues and MAC, and the Jacobian
     of the residual rows."""
-    state = run(theta0, problem, Dense(), jnp.zeros(0), settings, skip)
-    _, jac, aux = linearise(state.theta, problem, jnp.zeros(0), Dense())
+    state = run(theta0, problem, Direct(), jnp.zeros(0), settings, skip)
+    _, jac, aux = linearise(state.theta, problem, jnp.zeros(0), Direct())
     ev = aux.ev
     fit, held = (_cost_parts(state.theta, problem, mask, ev) for mask in (problem.active, ~problem.active))
     return state.theta, fit, held, ev.lam_a, ev.paired, ev.mac, jac[:-state.theta.shape[0]]

@@ -43,7 +43,7 @@ from identification import Sensors
 from jaxfem.io import read_bdf
 
 from ._compiled import Compiled
-from ._eigensolvers import LOCKSTEP, AbstractEigensolver, Refined, Subspace
+from ._eigensolvers import LOCKSTEP, AbstractEigensolver, Direct, Refined, Subspace
 from ._engine import Settings, run
 from ._residuals import Problem
 from ._simulation import Noise, perturb, simulate_test
@@ -70,6 +70,8 @@ class _Kind:
     def solver(self, start: _Start) -> AbstractEigensolver:
         if self.eigensolver == "full":
             return Refined(self.shift)
+        if self.eigensolver == "sparse":
+            return Direct()
         return Subspace(start.inverse, self.shift, self.lockstep)
 
 
@@ -114,22 +116,24 @@ class _Group:
     """Everything one n-mode group needs: the problem, the warm start, compiled batches."""
 
     def __init__(self, study: Study, n: int, reference, initial, sensors: Sensors, devices):
-        test = simulate_test(reference, sensors, n)
-        opts = study.parameters.options
+        sparse = study.eigensolver == "sparse"
+        solver = "sparse" if sparse else "dense"
+        test = simulate_test(reference, sensors, n, solver=solver)
+        opts = dataclasses.replace(study.parameters.options, eigensolver=solver)
         n_free = initial.n_dof - len(initial.dofs.massless)
-        self.problem = build_problem(initial, test, study.parameters)
+        self.problem = build_problem(initial, test, dataclasses.replace(study.parameters, options=opts))
         n_model = self.problem.n_model
         self.f0, self.phi0 = jnp.asarray(test.frequencies_hz), jnp.asarray(test.shapes)
-        q = min(n_free, max(2 * n_model, n_model + 8))
-        lam0, basis = jaxfem.eigh(*jaxfem.assemble(initial), q)
+        q = min(n_free - (2 if sparse else 0), max(2 * n_model, n_model + 8))
+        lam0, basis = jaxfem.modes(initial, q, solver=solver)
         rigid = float(lam0[0]) < 1e-6 * float(lam0[n_model - 1])
         shift = -0.01 * float(lam0[n_model - 1]) if rigid else 0.0
         self.kinds = {kind: _Kind(kind, Settings.from_options(opts), shift, study.lockstep)
-                      for kind in ("subspace", "full")}
+                      for kind in (("sparse",) if sparse else ("subspace", "full"))}
         # Where every update starts: the initial model, and for the noisy samples the
-        # error-free update (:meth:`sample_start`).
-        self.origin = _Start(jnp.zeros(len(self.problem.parameterisation.parameters)), basis,
-                             jaxfem.shifted_inverse(*jaxfem.assemble(initial), shift=shift))
+        # error-free update (:meth:`sample_start`); the sparse solver needs no preconditioner.
+        inverse = jnp.zeros((0, 0)) if sparse else jaxfem.shifted_inverse(*jaxfem.assemble(initial), shift=shift)
+        self.origin = _Start(jnp.zeros(len(self.problem.parameterisation.parameters)), basis, inverse)
         self._sample_start = None
         self._reference: dict[str, _Outcome] = {}
         self.devices = devices
@@ -167,7 +171,9 @@ class _Group:
         if self._sample_start is None:
             ref = self.reference(kind)
             self._sample_start = self.origin
-            if bool(ref.converged[0]) and bool(np.all(ref.paired[0])):
+            if bool(ref.converged[0]) and bool(np.all(ref.paired[0])) and kind == "sparse":
+                self._sample_start = _Start(jnp.asarray(ref.theta[0]), self.origin.basis, self.origin.inverse)
+            elif bool(ref.converged[0]) and bool(np.all(ref.paired[0])):
                 theta = jnp.asarray(ref.theta[0])
                 K, M = jaxfem.assemble(self.problem.model(theta))
                 shift = self.kinds["subspace"].shift

@@ -80,11 +80,29 @@ def model_modes(theta: Float[Array, " p"], problem: Problem):
 
 
 def evaluate(theta: Float[Array, " p"], problem: Problem) -> Evaluation:
-    """Solve the model at θ and pair its modes with the test modes."""
+    """Solve the model at θ and pair its modes with the test modes: all modes by
+    :func:`jaxfem.modes`, or, where ``problem.solver`` means the sparse path
+    (:func:`jaxfem.use_sparse`), the lowest by :func:`jaxfem.sparse_modes`, of which only
+    the paired ones are differentiated."""
+    model = problem.model(theta)
+    if jaxfem.use_sparse(model, problem.solver):
+        K, M = jaxfem.assemble(model)
+        return paired_subspace(K, M, jaxfem.sparse_modes(K, M, problem.n_model), problem)
     lam, phi_s = model_modes(theta, problem)
     index, paired = pair(lam, phi_s, problem)
     safe = jnp.where(paired, index, 0)
     return paired_evaluation(lam[safe], phi_s[:, safe], index, paired, lam, phi_s, problem)
+
+
+def paired_subspace(K, M, sol: jaxfem.Subspace, problem: Problem) -> Evaluation:
+    """Pair the lowest ``n_model`` modes of a solve without derivative (:class:`jaxfem.Subspace`),
+    then differentiate only the paired ones (:func:`jaxfem.ritz_modes`)."""
+    phi_s = problem.C @ sol.basis[:, : problem.n_model]
+    lam = sol.lam[: problem.n_model]
+    index, paired = pair(lam, phi_s, problem)
+    safe = jnp.where(paired, index, 0)
+    lam_a, phi_a = jaxfem.ritz_modes(K, M, sol, safe)
+    return paired_evaluation(lam_a, problem.C @ phi_a, index, paired, lam, phi_s, problem)
 
 
 def pair(lam: Float[Array, " nm"], phi_s: Float[Array, "ns nm"], problem: Problem):

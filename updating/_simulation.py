@@ -48,16 +48,16 @@ def perturb(key: PRNGKeyArray, noise: Noise, lam: Float[Array, " n"], phi: Float
 
 
 def simulate_test(model: Model, sensors: Sensors, n_modes: int, noise: Noise | None = None,
-                  key: PRNGKeyArray | None = None, *, skip: int = 0) -> ModalData:
+                  key: PRNGKeyArray | None = None, *, skip: int = 0, solver: str = "auto") -> ModalData:
     """The model's modes ``skip … skip + n_modes − 1`` (e.g. ``skip = 6`` drops the rigid-body
     modes of a free structure) at ``sensors``, with the errors of ``noise`` drawn from
-    ``key`` (thesis §4.3.3.2, Fig. 4.4, Fig. 4.23).
+    ``key`` (thesis §4.3.3.2, Fig. 4.4, Fig. 4.23); ``solver`` as :func:`jaxfem.modes`.
 
     **Returns:** :class:`identification.ModalData` (frequencies in Hz, real shapes).
     """
     if noise is not None and key is None:
         raise ValueError("noise needs a JAX random key")
-    lam, phi = jaxfem.modes(model, n_modes + skip)
+    lam, phi = jaxfem.modes(model, n_modes + skip, solver=solver)
     C, _ = observation_matrix(model, sensors)
     lam, shapes = lam[skip:], jnp.asarray(C) @ phi[:, skip:]
     if noise is not None:

@@ -23,7 +23,7 @@ from jaxfem._model import Opaque
 from ._compiled import Compiled
 from ._correlation import pair_modes
 from ._parameters import ParameterSet, parameterise
-from ._eigensolvers import Dense
+from ._eigensolvers import Direct
 from ._engine import Settings, run
 from ._residuals import Problem, auto_eigenvalue_weights
 from ._result import Iteration, UpdateResult
@@ -108,7 +108,7 @@ def update(model: Model, test: ModalData, parameters: ParameterSet, *,
     def report(k, alpha, cost, dev, mac):
         progress(Iteration(k, alpha, dev, mac, cost))
 
-    state = Compiled(run)(theta0, problem, Dense(), jnp.zeros(0), settings, False, report if progress else None)
+    state = Compiled(run)(theta0, problem, Direct(), jnp.zeros(0), settings, False, report if progress else None)
     h = state.history
     n = int(state.accepted)
     history = [Iteration(k, np.asarray(h.alpha[k]), np.asarray(h.freq_dev[k]), np.asarray(h.mac[k]),

@@ -42,7 +42,8 @@ class Study:
     of modes used in the update; ``errors``: magnitudes per category (fractions,
     Table 4.7); ``samples`` per category and magnitude; ``seed``; ``chunk_size``: samples
     per batch (the unit of incremental results and of Ray tasks); ``eigensolver``:
-    ``subspace`` or ``full``; ``lockstep``: samples updated together under ``vmap`` on
+    ``subspace`` or ``full`` (dense), or ``sparse`` (:func:`jaxfem.eigsh` in every
+    evaluation: models beyond the dense solver's reach); ``lockstep``: samples updated together under ``vmap`` on
     each device — 1 (in sequence) on CPUs, where a batch waits for its slowest sample
     (measured: 24 samples with 1/5/20 % errors in lockstep 1.9× slower per sample than in
     sequence; 4 with uniform errors as fast); larger batches are meant for accelerators
@@ -72,8 +73,8 @@ class Study:
             raise ValueError("error magnitudes are fractions in [0, 1), e.g. 0.05 for 5 %")
         if self.samples < 1 or self.chunk_size < 1 or self.lockstep < 1 or any(n < 1 for n in self.n_modes):
             raise ValueError("samples, chunk_size, lockstep and n_modes must be positive")
-        if self.eigensolver not in ("subspace", "full"):
-            raise ValueError(f"eigensolver {self.eigensolver!r}: subspace | full")
+        if self.eigensolver not in ("subspace", "full", "sparse"):
+            raise ValueError(f"eigensolver {self.eigensolver!r}: subspace | full | sparse")
         if not self.error_alpha > -1:
             raise ValueError("the modelling error α must be > −1")
 
