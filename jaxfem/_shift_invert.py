@@ -53,23 +53,118 @@ class SparseInverse(eqx.Module):
         return jax.pure_callback(host, jax.ShapeDtypeStruct(r.shape, r.dtype), *args, vmap_method="expand_dims")
 
 
+    def rest(self, b, lam_r, V, lam, tol: float, max_sweeps: int):
+        """The rest ``z_r`` of the modal expansion (:func:`jaxfem.ritz_modes`), M-orthogonal
+        to the computed modes V: ``(K − λ_r M) z_r = b_r`` per column, on the host
+        (:func:`_host_rest`)."""
+        args = (self.sigma, *self.k_blocks, *self.m_blocks, V, lam, lam_r, b)
+        host = functools.partial(_host_rest, self.key, self.backend, self.n_k, float(tol), int(max_sweeps))
+        return jax.pure_callback(host, jax.ShapeDtypeStruct(b.shape, b.dtype), *args, vmap_method="expand_dims")
+
+
+def _batches(nb: int, args, n_mat: int):
+    """Group leading (``vmap``) axes: yields ``(matrix arguments, rest arguments, out
+    index)`` per distinct matrix; the rest arguments are broadcast over the other axes."""
+    out_shape = np.broadcast_shapes(*(np.shape(a)[:nb] for a in args))
+    mat_shape = np.broadcast_shapes(*(np.shape(a)[:nb] for a in args[:n_mat]))
+    for at in np.ndindex(mat_shape):
+        pick = lambda a: np.asarray(a)[tuple(min(i, s - 1) for i, s in zip(at, np.shape(a)[:nb]))]  # noqa: E731
+        sel = tuple(i if s > 1 else slice(None) for i, s in zip(at, mat_shape))
+        rest = [np.broadcast_to(a, out_shape + np.shape(a)[nb:])[sel] for a in args[n_mat:]]
+        yield [pick(a) for a in args[:n_mat]], rest, sel
+
+
+SHIFT_RATE = 0.2  # rest solve: a mode shares a shift while (λ_r − σ_c) ≤ SHIFT_RATE (λ_q+1 − σ_c)
+SHIFT_OFFSET = 0.05  # a group's shift lies this fraction of λ_q+1 − λ below its lowest eigenvalue
+
+
+def _host_rest(key, backend, n_k, tol, max_sweeps, sigma, *args):
+    """Batched :meth:`SparseInverse.rest`. Modes near each other share a shift σ_c just
+    below their eigenvalues, and K − σ_c M is factorised once for them: with the computed
+    modes projected out, preconditioned conjugate gradients then converge at the rate of
+    (λ_r − σ_c)/(λ_s − σ_c), s > q, i.e. in a few sweeps (modes far below λ_q+1, e.g.
+    rigid-body modes, use the forward solve's factorisation)."""
+    *mats, V, lam, lam_r, b = args
+    nb = np.ndim(b) - 2
+    out = np.empty(np.broadcast_shapes(*(np.shape(a)[:nb] for a in args)) + np.shape(b)[nb:])
+    for (sig, *blocks, V, lam), (lam_r, b), sel in _batches(nb, (sigma, *mats, V, lam, lam_r, b), 1 + len(mats) + 2):
+        pat = _sparse.lookup(key)
+        kd, md = pat.values(blocks[:n_k], pat.slots[:n_k]), pat.values(blocks[n_k:], pat.slots[n_k:])
+        n, k = b.shape[-2:]
+        cols = np.moveaxis(b, -2, 0).reshape(n, -1)
+        shifts = np.broadcast_to(lam_r, b.shape[:-2] + (k,)).reshape(-1)
+        z = _rest(pat, key, backend, kd, md, float(sig), V, lam, shifts, cols, tol, max_sweeps)
+        out[sel] = np.moveaxis(z.reshape((n,) + b.shape[:-2] + (k,)), 0, -2)
+    return out
+
+
+def _rest(pat, key, backend, kd, md, sigma, V, lam, lam_r, b, tol, max_sweeps):
+    Kc, Mc = pat.matrix(kd), pat.matrix(md)
+    MV = Mc @ V
+    top = lam[-1] + (lam[-1] - lam[0]) / max(len(lam) - 1, 1)  # a floor for λ_q+1
+    z = np.zeros_like(b)
+    order = np.argsort(lam_r)
+    start = 0
+    while start < len(order):
+        first = lam_r[order[start]]
+        if (first - sigma) <= SHIFT_RATE * (top - sigma):
+            shift, f = sigma, _sparse.factor(key, backend, kd, md, sigma)
+        else:
+            shift = first - SHIFT_OFFSET * (top - first)
+            f = _sparse.new_factor(pat, backend, kd - shift * md, definite=False)
+        stop = start + 1
+        while stop < len(order) and lam_r[order[stop]] - shift <= SHIFT_RATE * (top - shift):
+            stop += 1
+        cols = order[start:stop]
+        z[:, cols] = _pcg(Kc, Mc, V, MV, f, lam_r[cols], b[:, cols], tol, max_sweeps)
+        start = stop
+    return z
+
+
+def _pcg(Kc, Mc, V, MV, f, lam_r, b, tol, max_sweeps):
+    """Preconditioned conjugate gradients, one system per column, ``(K − λ_r M) z = b`` on
+    the M-orthogonal complement of V, preconditioner P S Pᵀ (S from ``f``); converged
+    columns leave the block."""
+    def precondition(r):
+        x = f.solve(r - MV @ (V.T @ r))
+        return x - V @ (MV.T @ x)
+
+    z = np.zeros_like(b)
+    r = b.copy()
+    y = precondition(r)
+    p = y.copy()
+    ry = np.einsum("ij,ij->j", r, y)
+    active = np.arange(b.shape[1])
+    for _ in range(max_sweeps):
+        if not len(active):
+            break
+        pa = p[:, active]
+        ap = Kc @ pa - (Mc @ pa) * lam_r[active]
+        den = np.einsum("ij,ij->j", pa, ap)
+        alpha = np.where(den != 0, ry[active] / np.where(den != 0, den, 1.0), 0.0)
+        dz = pa * alpha
+        z[:, active] += dz
+        r[:, active] -= ap * alpha
+        step = np.abs(dz).max(axis=0) / np.maximum(np.abs(z[:, active]).max(axis=0), np.finfo(float).tiny)
+        y = precondition(r[:, active])
+        ry_new = np.einsum("ij,ij->j", r[:, active], y)
+        beta = np.where(ry[active] != 0, ry_new / np.where(ry[active] != 0, ry[active], 1.0), 0.0)
+        p[:, active] = y + pa * beta
+        ry[active] = ry_new
+        active = active[step > tol]
+    return z
+
+
 def _host_solve(key, backend, n_k, sigma, *args):
     """Batched (leading axes from ``vmap``) right-hand sides; one factorisation per
     distinct matrix, all its right-hand sides as columns of one solve."""
-    r, mats = np.asarray(args[-1]), args[:-1]
-    nb = r.ndim - 2
-    out_shape = np.broadcast_shapes(*(np.shape(a)[:nb] for a in (sigma, *args)))
-    mat_shape = np.broadcast_shapes(*(np.shape(a)[:nb] for a in (sigma, *mats)))
-    r = np.broadcast_to(r, out_shape + r.shape[nb:])
-    out = np.empty(r.shape)
-    n, k = r.shape[-2:]
-    for at in np.ndindex(mat_shape):
-        pick = lambda a: np.asarray(a)[tuple(min(i, s - 1) for i, s in zip(at, np.shape(a)[:nb]))]
-        f = _host_factor(key, backend, float(pick(sigma)), [pick(a) for a in mats], n_k)
-        sel = tuple(i if s > 1 else slice(None) for i, s in zip(at, mat_shape))
-        rhs = r[sel]
-        cols = np.moveaxis(rhs, -2, 0).reshape(n, -1)
-        out[sel] = np.moveaxis(f.solve(cols).reshape((n,) + rhs.shape[:-2] + (k,)), 0, -2)
+    nb = np.ndim(args[-1]) - 2
+    out = np.empty(np.broadcast_shapes(*(np.shape(a)[:nb] for a in (sigma, *args))) + np.shape(args[-1])[nb:])
+    for (sig, *blocks), (r,), sel in _batches(nb, (sigma, *args), len(args)):
+        f = _host_factor(key, backend, float(sig), blocks, n_k)
+        n, k = r.shape[-2:]
+        cols = np.moveaxis(r, -2, 0).reshape(n, -1)
+        out[sel] = np.moveaxis(f.solve(cols).reshape((n,) + r.shape[:-2] + (k,)), 0, -2)
     return out
 
 

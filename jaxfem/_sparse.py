@@ -272,15 +272,18 @@ def _factor(key, backend, k_data, m_data, sigma):
     if hit is not None and np.array_equal(hit[1], k_data) and np.array_equal(hit[2], m_data):
         _FACTORS.move_to_end(tag)
         return hit[0]
-    pat = lookup(key)
-    data = k_data - sigma * m_data
-    definite = sigma < 0
-    f = (_Pardiso if backend == "pardiso" else _SuperLU)(pat, data, definite)
+    f = new_factor(lookup(key), backend, k_data - sigma * m_data, definite=sigma < 0)
     budget = _memory_budget()
     while _FACTORS and sum(v[0].memory for v in _FACTORS.values()) + f.memory > budget:
         _FACTORS.popitem(last=False)
     _FACTORS[tag] = (f, k_data.copy(), m_data.copy())
     return f
+
+
+def new_factor(pat: SparsePattern, backend: str, data: np.ndarray, *, definite: bool) -> _Factor:
+    """A factorisation of the matrix with CSR values ``data`` on ``pat`` (not cached):
+    Cholesky if ``definite``, else a symmetric indefinite (PARDISO) or pivoted (SuperLU) one."""
+    return (_Pardiso if backend == "pardiso" else _SuperLU)(pat, data, definite)
 
 
 _PROBES: dict[int, np.ndarray] = {}

@@ -265,6 +265,8 @@ def _ritz_jvp(primals, tangents, *, solution, index, structure, rtol, refine_tol
         return k + 1, z, res, y + ratio(ry_new, ry) * p, ry_new, jnp.max(jnp.abs(dz)) / scale
 
     def solve(_, b):
+        if hasattr(solution.solver, "rest"):  # a host factorisation solves it on the host
+            return solution.solver.rest(b, lam_r, V, lam, refine_tol, max_refine)
         y0 = precondition(b)
         start = (jnp.asarray(0), jnp.zeros_like(b), b, y0, jnp.sum(b * y0, axis=0), jnp.asarray(jnp.inf, b.dtype))
         return jax.lax.while_loop(cond, body, start)[1]

@@ -117,7 +117,7 @@ def test_reverse_mode_equals_forward_mode():
         return jnp.sum(lam[6:] / lam[6]) + jnp.sum(phi[:50, 6:] ** 2)
 
     a0 = jnp.array([0.1, -0.05, 0.2])[: len(groups)]
-    np.testing.assert_allclose(jax.grad(loss)(a0), jax.jacfwd(loss)(a0), rtol=1e-9)
+    np.testing.assert_allclose(jax.grad(loss)(a0), jax.jacfwd(loss)(a0), rtol=1e-8)  # eigen-residuals 1e-6 here
 
 
 def test_jit_and_vmap_over_samples_match_single_solves():
