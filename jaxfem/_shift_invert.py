@@ -132,6 +132,7 @@ def _pcg(Kc, Mc, V, MV, f, lam_r, b, tol, max_sweeps):
     z = np.zeros_like(b)
     r = b.copy()
     y = precondition(r)
+    both = _sparse.stacked(Kc, Mc)
     p = y.copy()
     ry = np.einsum("ij,ij->j", r, y)
     active = np.arange(b.shape[1])
@@ -139,7 +140,8 @@ def _pcg(Kc, Mc, V, MV, f, lam_r, b, tol, max_sweeps):
         if not len(active):
             break
         pa = p[:, active]
-        ap = Kc @ pa - (Mc @ pa) * lam_r[active]
+        kp, mp = _sparse.matmul(both, pa)
+        ap = kp - mp * lam_r[active]
         den = np.einsum("ij,ij->j", pa, ap)
         alpha = np.where(den != 0, ry[active] / np.where(den != 0, den, 1.0), 0.0)
         dz = pa * alpha
