@@ -157,7 +157,7 @@ def test_constant_membrane_strain_and_curvature_patch(triangles):
         held.update({(int(g), c): 0.0 for g in ids for c in other})
         u = _static(model, held)
         err = max(abs(u[(int(g), c)] - v) for g, x in zip(ids, xyz) for c, v in field(x).items())
-        assert err < 1e-9 * 1e-3
+        assert err < 1e-8 * 1e-3  # round-off (1.4e-9 relative seen on the distorted triangles); a failed patch test is O(1)
 
 
 @pytest.mark.parametrize("triangles", [False, True])

@@ -85,6 +85,39 @@ def _covariant_shear(n, dn, jac):
     return _rows(*((z, z, dn[a], -n * jac[a, 1], n * jac[a, 0], z) for a in range(2)))
 
 
+# Closed forms instead of LAPACK for the element's 2 × 2 and 4 × 4 algebra: batched over
+# tens of thousands of elements inside a compiled program, jaxlib 0.10.2's LAPACK kernels
+# split their batch over the XLA-CPU worker threads and wait on them from a worker; with
+# several such calls in flight both workers of a 2-core machine wait and the program
+# hangs at 0 % CPU (seen with 50,000 quads: a jitted 300k-DoF assembly hung 3 times of 3).
+
+
+def _det2(a):
+    return a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
+
+
+def _inv2(a):
+    return jnp.array([[a[1, 1], -a[0, 1]], [-a[1, 0], a[0, 0]]]) / _det2(a)
+
+
+def _spd_solve(a, b):
+    """``a⁻¹ b`` for a small symmetric positive definite ``a``: unrolled Cholesky."""
+    n = a.shape[0]
+    low = [[None] * n for _ in range(n)]
+    for j in range(n):
+        d = a[j, j] - sum(low[j][k] ** 2 for k in range(j))
+        low[j][j] = jnp.sqrt(d)
+        for i in range(j + 1, n):
+            low[i][j] = (a[i, j] - sum(low[i][k] * low[j][k] for k in range(j))) / low[j][j]
+    y = []
+    for i in range(n):
+        y.append((b[i] - sum(low[i][k] * y[k] for k in range(i))) / low[i][i])
+    x = [None] * n
+    for i in reversed(range(n)):
+        x[i] = (y[i] - sum(low[k][i] * x[k] for k in range(i + 1, n))) / low[i][i]
+    return jnp.stack(x)
+
+
 def _stiff_local(xy, lam, r_corner, k6rot, points, weights, shape, shear_at):
     """Local stiffness (6·nn + extra) of a flat element, summed over the integration points.
 
@@ -96,7 +129,7 @@ def _stiff_local(xy, lam, r_corner, k6rot, points, weights, shape, shear_at):
     jac0 = dn0 @ xy
     at = [(p, w, *shape(*p)) for p, w in zip(points, weights)]
     jacs = [dn @ xy for *_, dn in at]
-    dets = [jnp.linalg.det(j) for j in jacs]
+    dets = [_det2(j) for j in jacs]
     area = sum(w * d for (_, w, *_), d in zip(at, dets))
     rigid_s = RIGID_SHEAR * 12.0 * 0.5 * (lam.D[0, 0] + lam.D[1, 1]) / area * jnp.eye(2)
     s_mat = jnp.where(lam.rigid > 0, rigid_s, lam.S)
@@ -104,7 +137,7 @@ def _stiff_local(xy, lam, r_corner, k6rot, points, weights, shape, shear_at):
     size = 6 * nn + extra
     k = jnp.zeros((size, size))
     for (p, w, n, dn), jac, det in zip(at, jacs, dets):
-        jinv = jnp.linalg.inv(jac)
+        jinv = _inv2(jac)
         dndx = jinv @ dn
         bm, bb = _membrane(dndx), _bending(dndx)
         if extra:
@@ -122,7 +155,7 @@ def _stiff_local(xy, lam, r_corner, k6rot, points, weights, shape, shear_at):
     m = 6 * nn
     kii = k[m:, m:]
     kii = kii + jnp.eye(extra) * (jnp.trace(kii) == 0.0).astype(jnp.float64)  # no membrane: nothing to condense
-    return k[:m, :m] - k[:m, m:] @ jnp.linalg.solve(kii, k[m:, :m])
+    return k[:m, :m] - k[:m, m:] @ _spd_solve(kii, k[m:, :m])
 
 
 def _incompatible(p, jac0, det):
@@ -130,7 +163,7 @@ def _incompatible(p, jac0, det):
     Jacobian and the factor det J₀/det J that makes them pass the patch test (Taylor,
     Beresford & Wilson 1976, QM6): columns [u·P1, u·P2, v·P1, v·P2]."""
     dp = jnp.array([[-2.0 * p[0], 0.0], [0.0, -2.0 * p[1]]])  # rows d/dξ, d/dη; columns P1, P2
-    d = jnp.linalg.solve(jac0, dp) * (jnp.linalg.det(jac0) / det)
+    d = _inv2(jac0) @ dp * (_det2(jac0) / det)
     z = jnp.zeros(2)
     return jnp.stack([jnp.concatenate([d[0], z]), jnp.concatenate([z, d[1]]), jnp.concatenate([d[1], d[0]])])
 
@@ -176,7 +209,7 @@ def _mass_local(xy, lam, r_corner, points, weights, shape, lumped):
         n, dn = shape(*p)
         n = jnp.asarray(n)
         z = jnp.zeros_like(n)
-        da = w * jnp.linalg.det(dn @ xy)
+        da = w * _det2(dn @ xy)
         r = n @ r_corner
         total = total + da * lam.I0 * r
         u, v, wz, tx, ty = _rows((n, z, z, z, z, z), (z, n, z, z, z, z), (z, z, n, z, z, z),
