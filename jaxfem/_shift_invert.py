@@ -10,8 +10,12 @@ and a Rayleigh–Ritz step refine them to rounding.
 Derivatives: the q modes form a :class:`jaxfem.Subspace` whose inverse is the same
 factorisation, and :func:`jaxfem.ritz_modes` differentiates the m wanted ones exactly —
 the modal expansion over the q computed modes (thesis eq. 3.23, eq. 3.28, eq. 3.29) plus
-its rest solved by preconditioned conjugate gradients with that factorisation: no new
-factorisation, no other modes. Clusters of nearly equal eigenvalues are handled as in
+its rest, M-orthogonal to them, solved on the host (:meth:`SparseInverse.rest`) by
+preconditioned conjugate gradients, all parameters' right-hand sides of a mode as
+columns of one block: modes far below λ_q+1 with the forward factorisation, the others
+with one factorisation of K − σ_c M per group of close modes (σ_c a little below them,
+so that a few sweeps suffice). Never one factorisation per mode and parameter, and no
+modes beyond the q. Clusters of nearly equal eigenvalues are handled as in
 :func:`jaxfem.eigh` with ``degenerate="mean"``, provided a cluster does not reach past
 the q computed modes (``n_extra`` ≥ the size of any cluster at the m-th mode).
 """
@@ -107,11 +111,8 @@ def _rest(pat, key, backend, kd, md, sigma, V, lam, lam_r, b, tol, max_sweeps):
     start = 0
     while start < len(order):
         first = lam_r[order[start]]
-        if (first - sigma) <= SHIFT_RATE * (top - sigma):
-            shift, f = sigma, _sparse.factor(key, backend, kd, md, sigma)
-        else:
-            shift = first - SHIFT_OFFSET * (top - first)
-            f = _sparse.new_factor(pat, backend, kd - shift * md, definite=False)
+        shift = sigma if (first - sigma) <= SHIFT_RATE * (top - sigma) else first - SHIFT_OFFSET * (top - first)
+        f = _sparse.factor(key, backend, kd, md, shift)  # cached: a Jacobian in chunks of tangents reuses it
         stop = start + 1
         while stop < len(order) and lam_r[order[stop]] - shift <= SHIFT_RATE * (top - shift):
             stop += 1

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import sys
 import threading
 import warnings
 from collections import OrderedDict
@@ -235,7 +236,7 @@ class _Pardiso(_Factor):
         return np.ascontiguousarray(x).reshape(b.shape)
 
     def __del__(self):
-        if getattr(self, "_solver", None) is not None:
+        if getattr(self, "_solver", None) is not None and not sys.is_finalizing():  # MKL may be gone at exit
             try:
                 self._call(-1, np.zeros((self._n, 1), order="F"))  # release PARDISO's memory
             except Exception:

@@ -1,6 +1,7 @@
 """The sparse path (jaxfem.eigsh: shift-invert Lanczos on a sparse factorisation) against
 the dense solver (jaxfem.eigh): values, Jacobians, clusters, rigid-body modes, errors."""
 
+import json
 import warnings
 
 import equinox as eqx
@@ -168,3 +169,51 @@ def test_auto_selection_and_the_missing_library_warning(monkeypatch):
         assert _sparse.resolve_backend("auto") == "superlu"  # warned once
     with pytest.raises(ImportError, match="pypardiso"):
         _sparse.resolve_backend("pardiso")
+
+
+def test_modes_command_solves_dense_and_sparse_alike(tmp_path):
+    from typer.testing import CliRunner
+
+    from updating.cli import app
+
+    out = {}
+    for solver in ("dense", "sparse"):
+        path = tmp_path / f"{solver}.json"
+        result = CliRunner().invoke(app, ["modes", str(MODELS / "garteur.bdf"), "-n", "12", "--solver", solver,
+                                          "--json", str(path)])
+        assert result.exit_code == 0, result.output
+        assert f"{solver} eigensolver" in result.output
+        out[solver] = json.loads(path.read_text())
+        assert out[solver]["eigensolver"] == solver
+    np.testing.assert_allclose(out["sparse"]["frequencies_hz"][5:], out["dense"]["frequencies_hz"][5:], rtol=1e-8)
+    bad = CliRunner().invoke(app, ["modes", str(MODELS / "garteur.bdf"), "--solver", "lanczos"])
+    assert bad.exit_code == 2 and "dense | sparse" in bad.output
+
+
+@pytest.mark.slow
+def test_barrel_of_20k_dofs_matches_central_differences():
+    """The generated fuselage barrel at 20,000 DoFs (shells, beams, rods, bushes, springs,
+    masses): forward-mode derivatives of the 10 lowest modes (six suspension, four elastic)
+    in three parameters against central differences (h = 1e-5 in θ = ln(1 + α))."""
+    from benchmarks import fuselage
+    from updating import parameterise
+
+    model = jaxfem.build_model(read_bdf_text(fuselage.barrel_bdf(20000), name="barrel"))
+    assert model.n_dof >= 20000
+    chosen = [p for p in fuselage.parameter_groups(10) if p.name in ("skin upper", "frames E", "joint k")]
+    base, par = parameterise(model, chosen)
+
+    def f(theta):
+        return jaxfem.eigsh(*jaxfem.assemble(par.apply(base, theta)), 10)
+
+    t0 = jnp.zeros(3)
+    lam0, phi0 = f(t0)
+    h = 1e-5
+    for j in range(3):
+        e = jnp.zeros(3).at[j].set(1.0)
+        _, (dlam, dphi) = jax.jvp(f, (t0,), (e,))
+        (lp, pp), (lm, pm) = f(t0 + h * e), f(t0 - h * e)
+        np.testing.assert_allclose(dlam, (lp - lm) / (2 * h), rtol=1e-5, atol=1e-5 * float(jnp.abs(dlam).max()))
+        fd = (pp - pm) / (2 * h)
+        scale = np.abs(np.asarray(dphi)).max(axis=0)
+        assert (np.abs(np.asarray(dphi - fd)).max(axis=0) <= 1e-5 * scale + 1e-9 * np.abs(np.asarray(phi0)).max()).all()

@@ -28,6 +28,8 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Bool, Float, Int
 
+import jaxfem
+
 from ._eigensolvers import AbstractEigensolver
 from ._parameters import Options
 from ._qr import HouseholderQR
@@ -107,6 +109,9 @@ def _attach_jvp(primals, tangents):
     return eps, jac @ tangents[0]
 
 
+TANGENT_DOFS = 200_000  # above SPARSE_ABOVE DoFs, the Jacobian takes TANGENT_DOFS // n_dof tangents at a time
+
+
 def linearise(theta, problem: Problem, warm: Array, eigensolver: AbstractEigensolver):
     """ε(θ) as one vector (eigenvalue, eigenvector, regularisation rows), its forward-mode
     Jacobian computed in the same pass, and the eigensolver's auxiliary output."""
@@ -118,7 +123,13 @@ def linearise(theta, problem: Problem, warm: Array, eigensolver: AbstractEigenso
 
     t = jax.lax.stop_gradient(theta)
     eps, lin, aux = jax.linearize(flat, t, has_aux=True)
-    return eps, jax.vmap(lin, out_axes=1)(jnp.eye(t.shape[0], dtype=t.dtype)), aux
+    eye = jnp.eye(t.shape[0], dtype=t.dtype)
+    n_dof = problem.C.shape[1]
+    if n_dof <= jaxfem.SPARSE_ABOVE:
+        return eps, jax.vmap(lin, out_axes=1)(eye), aux
+    # large models: the element-block tangents of all parameters at once would not fit
+    # (20 at 100,000 DoFs: more than 24 GB); a few at a time, the factorisations cached
+    return eps, jax.lax.map(lin, eye, batch_size=max(1, TANGENT_DOFS // n_dof)).T, aux
 
 
 def _residual(theta, args, eigensolver: AbstractEigensolver):
