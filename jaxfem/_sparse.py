@@ -167,6 +167,7 @@ class _SuperLU(_Factor):
 
     def __init__(self, pat: SparsePattern, data: np.ndarray, definite: bool):
         a = pat.matrix(data).tocsc()
+        self._lock = threading.Lock()
         try:
             if definite:
                 self._lu = scipy.sparse.linalg.splu(a, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
@@ -182,7 +183,8 @@ class _SuperLU(_Factor):
             raise _singular(f"smallest pivot {pivots.min():.3g}, largest diagonal {scale:.3g}")
 
     def solve(self, b):
-        return self._lu.solve(np.asarray(b, dtype=np.float64))
+        with self._lock:
+            return self._lu.solve(np.asarray(b, dtype=np.float64))
 
 
 class _Pardiso(_Factor):
@@ -195,6 +197,7 @@ class _Pardiso(_Factor):
         import pypardiso
 
         self._solver = pypardiso.PyPardisoSolver(mtype=2 if definite else -2)
+        self._lock = threading.Lock()
         self._n = pat.n
         self._data = np.ascontiguousarray(data[pat.upper])
         self._ia = pat.upper_indptr.astype(np.int32) + 1  # one-based
@@ -232,7 +235,8 @@ class _Pardiso(_Factor):
 
     def solve(self, b):
         b = np.asarray(b, dtype=np.float64)
-        x = self._call(33, np.asfortranarray(b.reshape(b.shape[0], -1)))
+        with self._lock:  # one PARDISO handle is not reentrant; XLA may run two callbacks at once
+            x = self._call(33, np.asfortranarray(b.reshape(b.shape[0], -1)))
         return np.ascontiguousarray(x).reshape(b.shape)
 
     def __del__(self):

@@ -70,14 +70,14 @@ def test_laminated_stiffened_panel_agrees_with_dense():
 def test_mixed_shell_and_beam_model_with_massless_dofs_agrees_with_dense():
     """A cantilever plate with a CBAR stiffener and lumped mass (COUPMASS off: rotations
     without mass, condensed by the dense solver, kept by shift-invert)."""
-    text = plate(0.5, 0.3, 10, 6, ALU_PLATE, bc="cfff").replace("PARAM,COUPMASS,1\n", "")
+    text = plate(0.5, 0.3, 8, 4, ALU_PLATE, bc="cfff").replace("PARAM,COUPMASS,1\n", "")
     lines = text.splitlines()
-    lines += ["PBAR,7,1,2.e-4,1.e-8,2.e-8,1.e-8", "CONM2,900,44,,0.4"]  # grid 44: the tip of y = 0.15
-    lines += [f"CBAR,{700 + i},7,{34 + i},{35 + i},0.,0.,1." for i in range(10)]
+    lines += ["PBAR,7,1,2.e-4,1.e-8,2.e-8,1.e-8", "CONM2,900,27,,0.4"]  # grid 27: the tip of y = 0.15
+    lines += [f"CBAR,{700 + i},7,{19 + i},{20 + i},0.,0.,1." for i in range(8)]
     model = jaxfem.build_model(read_bdf_text("\n".join(lines)))
     assert len(model.dofs.massless) > 0
     groups = [model.element_ids(pids=[1]), model.element_ids(pids=[7])]
-    _assert_agree(lambda a: jaxfem.correct(model, groups, a), jnp.array([0.05, -0.1]), 10)
+    _assert_agree(lambda a: jaxfem.correct(model, groups, a), jnp.array([0.05, -0.1]), 8)
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
