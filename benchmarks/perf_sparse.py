@@ -66,7 +66,7 @@ def measure(n_dof: int, update: bool, jacobian_up_to: int = 10**9) -> dict:
     model, out["build_s"] = _timed(lambda: jaxfem.build_model(read_bdf_text(text, name="barrel")))
     out["n_dof"] = int(model.n_dof)
     (K, M), out["assemble_s"] = _timed(lambda: jax.block_until_ready(jaxfem.assemble(model)))
-    key, pat = _sparse.pattern(tuple(K.indices) + tuple(M.indices), K.n)
+    pat = _sparse.pattern(tuple(K.indices) + tuple(M.indices), K.n)
     nk = len(K.blocks)
     kd = pat.values([np.asarray(b) for b in K.blocks], pat.slots[:nk])
     md = pat.values([np.asarray(b) for b in M.blocks], pat.slots[nk:])
@@ -87,7 +87,7 @@ def measure(n_dof: int, update: bool, jacobian_up_to: int = 10**9) -> dict:
         return spla.eigsh(Kc.tocsc(), N_MODES, Mc.tocsc(), sigma=sigma, which="LM")
 
     def scipy_same_library():
-        f = _sparse._FACTORS.clear() or _sparse.factor(key, backend, kd, md, sigma)
+        f = _sparse._FACTORS.clear() or _sparse.factor(pat, backend, kd, md, sigma)
         op = spla.LinearOperator(Kc.shape, matvec=f.solve, dtype=np.float64)
         return spla.eigsh(Kc, N_MODES, Mc, sigma=sigma, OPinv=op, which="LM")
 

@@ -4,8 +4,8 @@ Forward (host, through ``jax.pure_callback``): the CSR values of K and M are sum
 the element blocks (:mod:`jaxfem._sparse`), ``K − σM`` is factorised once (MKL PARDISO
 or SuperLU) and ARPACK's implicitly restarted Lanczos (``scipy.sparse.linalg.eigsh``,
 mode 3) finds the q = m + extra eigenvalues nearest σ of ``(K − σM)⁻¹ M``, σ below the
-spectrum. One sweep of inverse iteration in residual form, ``V − (K − σM)⁻¹(K V − M V Λ)``,
-and a Rayleigh–Ritz step refine them to rounding.
+spectrum. Two sweeps of inverse iteration in residual form, ``V − (K − σM)⁻¹(K V − M V Λ)``,
+each with a Rayleigh–Ritz step, refine them to rounding.
 
 Derivatives: the q modes form a :class:`jaxfem.Subspace` whose inverse is the same
 factorisation, and :func:`jaxfem.ritz_modes` differentiates the m wanted ones exactly —
@@ -38,6 +38,7 @@ from ._matrix import ElementMatrix
 from ._subspace import Subspace, ritz_modes
 
 DENSE_BELOW = 400  # DoFs with mass below which the host solves the shifted problem densely
+REFINE_SWEEPS = 2  # after the Lanczos iteration (one left jitter of 1e-9 in updates of the tree)
 SIGMA_FRACTION = 1e-3  # automatic σ = −SIGMA_FRACTION · min K_ii/M_ii (below every eigenvalue)
 
 
@@ -47,13 +48,13 @@ class SparseInverse(eqx.Module):
     k_blocks: tuple[Array, ...]
     m_blocks: tuple[Array, ...]
     sigma: Float[Array, ""]
-    key: str = eqx.field(static=True)
+    pattern: _sparse.SparsePattern = eqx.field(static=True)
     backend: str = eqx.field(static=True)
     n_k: int = eqx.field(static=True)
 
     def solve(self, r: Float[Array, "n k"]) -> Float[Array, "n k"]:
         args = (self.sigma, *self.k_blocks, *self.m_blocks, r)
-        host = functools.partial(_host_solve, self.key, self.backend, self.n_k)
+        host = functools.partial(_host_solve, self.pattern, self.backend, self.n_k)
         return jax.pure_callback(host, jax.ShapeDtypeStruct(r.shape, r.dtype), *args, vmap_method="expand_dims")
 
 
@@ -62,7 +63,7 @@ class SparseInverse(eqx.Module):
         to the computed modes V: ``(K − λ_r M) z_r = b_r`` per column, on the host
         (:func:`_host_rest`)."""
         args = (self.sigma, *self.k_blocks, *self.m_blocks, V, lam, lam_r, b)
-        host = functools.partial(_host_rest, self.key, self.backend, self.n_k, float(tol), int(max_sweeps))
+        host = functools.partial(_host_rest, self.pattern, self.backend, self.n_k, float(tol), int(max_sweeps))
         return jax.pure_callback(host, jax.ShapeDtypeStruct(b.shape, b.dtype), *args, vmap_method="expand_dims")
 
 
@@ -82,7 +83,7 @@ SHIFT_RATE = 0.2  # rest solve: a mode shares a shift while (λ_r − σ_c) ≤ 
 SHIFT_OFFSET = 0.05  # a group's shift lies this fraction of λ_q+1 − λ below its lowest eigenvalue
 
 
-def _host_rest(key, backend, n_k, tol, max_sweeps, sigma, *args):
+def _host_rest(pat, backend, n_k, tol, max_sweeps, sigma, *args):
     """Batched :meth:`SparseInverse.rest`. Modes near each other share a shift σ_c just
     below their eigenvalues, and K − σ_c M is factorised once for them: with the computed
     modes projected out, preconditioned conjugate gradients then converge at the rate of
@@ -92,17 +93,16 @@ def _host_rest(key, backend, n_k, tol, max_sweeps, sigma, *args):
     nb = np.ndim(b) - 2
     out = np.empty(np.broadcast_shapes(*(np.shape(a)[:nb] for a in args)) + np.shape(b)[nb:])
     for (sig, *blocks, V, lam), (lam_r, b), sel in _batches(nb, (sigma, *mats, V, lam, lam_r, b), 1 + len(mats) + 2):
-        pat = _sparse.lookup(key)
         kd, md = pat.values(blocks[:n_k], pat.slots[:n_k]), pat.values(blocks[n_k:], pat.slots[n_k:])
         n, k = b.shape[-2:]
         cols = np.moveaxis(b, -2, 0).reshape(n, -1)
         shifts = np.broadcast_to(lam_r, b.shape[:-2] + (k,)).reshape(-1)
-        z = _rest(pat, key, backend, kd, md, float(sig), V, lam, shifts, cols, tol, max_sweeps)
+        z = _rest(pat, backend, kd, md, float(sig), V, lam, shifts, cols, tol, max_sweeps)
         out[sel] = np.moveaxis(z.reshape((n,) + b.shape[:-2] + (k,)), 0, -2)
     return out
 
 
-def _rest(pat, key, backend, kd, md, sigma, V, lam, lam_r, b, tol, max_sweeps):
+def _rest(pat, backend, kd, md, sigma, V, lam, lam_r, b, tol, max_sweeps):
     Kc, Mc = pat.matrix(kd), pat.matrix(md)
     MV = Mc @ V
     top = lam[-1] + (lam[-1] - lam[0]) / max(len(lam) - 1, 1)  # a floor for λ_q+1
@@ -112,7 +112,7 @@ def _rest(pat, key, backend, kd, md, sigma, V, lam, lam_r, b, tol, max_sweeps):
     while start < len(order):
         first = lam_r[order[start]]
         shift = sigma if (first - sigma) <= SHIFT_RATE * (top - sigma) else first - SHIFT_OFFSET * (top - first)
-        f = _sparse.factor(key, backend, kd, md, shift)  # cached: a Jacobian in chunks of tangents reuses it
+        f = _sparse.factor(pat, backend, kd, md, shift)  # cached: a Jacobian in chunks of tangents reuses it
         stop = start + 1
         while stop < len(order) and lam_r[order[stop]] - shift <= SHIFT_RATE * (top - shift):
             stop += 1
@@ -158,22 +158,21 @@ def _pcg(Kc, Mc, V, MV, f, lam_r, b, tol, max_sweeps):
     return z
 
 
-def _host_solve(key, backend, n_k, sigma, *args):
+def _host_solve(pat, backend, n_k, sigma, *args):
     """Batched (leading axes from ``vmap``) right-hand sides; one factorisation per
     distinct matrix, all its right-hand sides as columns of one solve."""
     nb = np.ndim(args[-1]) - 2
     out = np.empty(np.broadcast_shapes(*(np.shape(a)[:nb] for a in (sigma, *args))) + np.shape(args[-1])[nb:])
     for (sig, *blocks), (r,), sel in _batches(nb, (sigma, *args), len(args)):
-        f = _host_factor(key, backend, float(sig), blocks, n_k)
+        f = _host_factor(pat, backend, float(sig), blocks, n_k)
         n, k = r.shape[-2:]
         cols = np.moveaxis(r, -2, 0).reshape(n, -1)
         out[sel] = np.moveaxis(f.solve(cols).reshape((n,) + r.shape[:-2] + (k,)), 0, -2)
     return out
 
 
-def _host_factor(key, backend, sigma, blocks, n_k):
-    pat = _sparse.lookup(key)
-    return _sparse.factor(key, backend, pat.values(blocks[:n_k], pat.slots[:n_k]),
+def _host_factor(pat, backend, sigma, blocks, n_k):
+    return _sparse.factor(pat, backend, pat.values(blocks[:n_k], pat.slots[:n_k]),
                           pat.values(blocks[n_k:], pat.slots[n_k:]), sigma)
 
 
@@ -221,7 +220,7 @@ def sparse_modes(K, M, n_modes: int, *, n_extra: int | None = None, sigma: float
     q = min(m + extra, n_free - 1)
     if not 1 <= m <= q:
         raise ValueError(f"n_modes must be in 1..{n_free - 2} for the sparse solver ({n_free} DoFs with mass), got {m}")
-    key, _ = _sparse.pattern(tuple(K.indices) + tuple(M.indices), K.n)
+    pat = _sparse.pattern(tuple(K.indices) + tuple(M.indices), K.n)
     backend = _sparse.resolve_backend(backend)
     n_k = len(K.blocks)
     blocks = jax.lax.stop_gradient(tuple(K.blocks) + tuple(M.blocks))
@@ -230,22 +229,21 @@ def sparse_modes(K, M, n_modes: int, *, n_extra: int | None = None, sigma: float
              jax.ShapeDtypeStruct((K.n, q), jnp.float64))
 
     def host(*blocks):
-        return _host_modes(key, backend, None if auto else float(sigma), q, list(blocks), n_k)
+        return _host_modes(pat, backend, None if auto else float(sigma), q, list(blocks), n_k)
 
     sig, lam, V = jax.pure_callback(host, shape, *blocks, vmap_method="sequential")
-    inverse = SparseInverse(blocks[:n_k], blocks[n_k:], sig, key, backend, n_k)
+    inverse = SparseInverse(blocks[:n_k], blocks[n_k:], sig, pat, backend, n_k)
     return Subspace(lam, V, inverse, jnp.asarray(True), jnp.zeros(()), jnp.zeros((), jnp.int32), q)
 
 
-def _host_modes(key, backend, sigma, q, blocks, n_k):
-    pat = _sparse.lookup(key)
+def _host_modes(pat, backend, sigma, q, blocks, n_k):
     kd, md = pat.values(blocks[:n_k], pat.slots[:n_k]), pat.values(blocks[n_k:], pat.slots[n_k:])
     Kc, Mc = pat.matrix(kd), pat.matrix(md)
     if sigma is None:
         dk, dm = Kc.diagonal(), Mc.diagonal()
         ratio = np.where((dm > 0) & (dk > 0), dk / np.where(dm > 0, dm, 1.0), np.inf)
         sigma = -SIGMA_FRACTION * float(ratio.min()) if np.isfinite(ratio.min()) else -1.0
-    f = _sparse.factor(key, backend, kd, md, sigma)
+    f = _sparse.factor(pat, backend, kd, md, sigma)
     n_free = int(np.count_nonzero(Mc.diagonal() > 0))
     ncv = min(n_free - 1, max(2 * q + 1, 20))
     if n_free <= DENSE_BELOW or ncv <= q:
@@ -262,11 +260,12 @@ def _host_modes(key, backend, sigma, q, blocks, n_k):
         lam, V = lam[order], V[:, order]
     if lam[0] < sigma:
         raise ValueError(f"sigma = {sigma:.6g} (rad/s)² lies above the lowest eigenvalue {lam[0]:.6g}")
-    # one sweep of inverse iteration in residual form, then Rayleigh–Ritz (refined to rounding)
-    V = V - f.solve(Kc @ V - (Mc @ V) * lam)
-    kr, mr = V.T @ (Kc @ V), V.T @ (Mc @ V)
-    lam, Z = scipy.linalg.eigh(0.5 * (kr + kr.T), 0.5 * (mr + mr.T))
-    V = V @ Z
+    # sweeps of inverse iteration in residual form, each with Rayleigh–Ritz (refined to rounding)
+    for _ in range(REFINE_SWEEPS):
+        V = V - f.solve(Kc @ V - (Mc @ V) * lam)
+        kr, mr = V.T @ (Kc @ V), V.T @ (Mc @ V)
+        lam, Z = scipy.linalg.eigh(0.5 * (kr + kr.T), 0.5 * (mr + mr.T))
+        V = V @ Z
     big = np.take_along_axis(V, np.argmax(np.abs(V), axis=0)[None], axis=0)[0]
     return np.float64(sigma), lam, V * np.where(big < 0, -1.0, 1.0)
 

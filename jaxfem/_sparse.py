@@ -24,6 +24,7 @@ eigensolver and its derivative rule share one.
 from __future__ import annotations
 
 import hashlib
+import importlib
 import os
 import sys
 import threading
@@ -38,15 +39,16 @@ import scipy.sparse.linalg
 BACKENDS = ("auto", "pardiso", "superlu")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # compared and hashed by identity (a static field of jitted code)
 class SparsePattern:
     """Symmetric CSR pattern of n × n matrices assembled from element blocks.
 
-    ``slots[i]`` maps the entries of block array i (flattened) to CSR positions, ``nnz``
+    ``key`` is a digest of the element indices; ``slots[i]`` maps the entries of block array i (flattened) to CSR positions, ``nnz``
     for padding; ``upper`` selects the entries with column ≥ row (PARDISO's half), whose
     CSR structure is ``upper_indptr``, ``upper_indices``.
     """
 
+    key: str
     n: int
     indptr: np.ndarray
     indices: np.ndarray
@@ -109,19 +111,19 @@ def _digest(arrays) -> str:
     return h.hexdigest()
 
 
-def pattern(indices: tuple[np.ndarray, ...], n: int) -> tuple[str, SparsePattern]:
+def pattern(indices: tuple[np.ndarray, ...], n: int) -> SparsePattern:
     """The pattern of the element blocks scattered at ``indices`` (each (n_el, w), ``n`` =
-    padding), cached by content; returns ``(key, pattern)``."""
+    padding), cached by content (the callers keep it alive as long as they need it)."""
     key = _digest(indices) + f":{n}"
     with _LOCK:
         if key not in _PATTERNS:
-            _PATTERNS[key] = _pattern(indices, n)
+            _PATTERNS[key] = _pattern(key, indices, n)
             while len(_PATTERNS) > _PATTERN_CACHE:
                 _PATTERNS.pop(next(iter(_PATTERNS)))
-        return key, _PATTERNS[key]
+        return _PATTERNS[key]
 
 
-def _pattern(indices, n) -> SparsePattern:
+def _pattern(key, indices, n) -> SparsePattern:
     pieces, seen = [], {}  # K and M often share index arrays: one code array each
     for idx in indices:
         tag = _digest([idx])
@@ -144,12 +146,8 @@ def _pattern(indices, n) -> SparsePattern:
     upper = np.flatnonzero(cols >= rows)
     upper_indptr = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(np.bincount(rows[upper], minlength=n), out=upper_indptr[1:])
-    return SparsePattern(n, indptr, cols.astype(np.int32), slots, upper, upper_indptr.astype(np.int32),
+    return SparsePattern(key, n, indptr, cols.astype(np.int32), slots, upper, upper_indptr.astype(np.int32),
                          cols[upper].astype(np.int32))
-
-
-def lookup(key: str) -> SparsePattern:
-    return _PATTERNS[key]
 
 
 class _Factor:
@@ -266,13 +264,13 @@ def resolve_backend(backend: str) -> str:
     if backend == "superlu":
         return backend
     try:
-        import pypardiso  # noqa: F401
-    except ImportError:
+        importlib.import_module("pypardiso")
+    except ImportError as err:  # not installed, or its MKL library not found
         if backend == "pardiso":
-            raise ImportError("backend 'pardiso' needs pypardiso: pip install 'jaxfem[sparse]'") from None
+            raise ImportError(f"backend 'pardiso' needs pypardiso and MKL: pip install 'jaxfem[sparse]' ({err})") from None
         if not _warned:
             _warned = True
-            warnings.warn("pypardiso is not installed: the sparse eigensolver factorises with SciPy's "
+            warnings.warn(f"pypardiso cannot be used ({err}): the sparse eigensolver factorises with SciPy's "
                           "SuperLU (slower on large models; pip install 'jaxfem[sparse]' for MKL PARDISO)",
                           stacklevel=3)
         return "superlu"
@@ -290,20 +288,20 @@ def _memory_budget() -> float:
         return 4 * 2.0**30
 
 
-def factor(key: str, backend: str, k_data: np.ndarray, m_data: np.ndarray, sigma: float) -> _Factor:
-    """The factorisation of K − σM (CSR values on the pattern ``key``), cached by value."""
+def factor(pat: SparsePattern, backend: str, k_data: np.ndarray, m_data: np.ndarray, sigma: float) -> _Factor:
+    """The factorisation of K − σM (CSR values on ``pat``), cached by value."""
     with _LOCK:
-        return _factor(key, backend, k_data, m_data, sigma)
+        return _factor(pat, backend, k_data, m_data, sigma)
 
 
-def _factor(key, backend, k_data, m_data, sigma):
-    tag = (key, backend, float(sigma), k_data.shape, float(k_data @ _probe(len(k_data))),
+def _factor(pat, backend, k_data, m_data, sigma):
+    tag = (pat.key, backend, float(sigma), k_data.shape, float(k_data @ _probe(len(k_data))),
            float(m_data @ _probe(len(m_data))))
     hit = _FACTORS.get(tag)
     if hit is not None and np.array_equal(hit[1], k_data) and np.array_equal(hit[2], m_data):
         _FACTORS.move_to_end(tag)
         return hit[0]
-    f = new_factor(lookup(key), backend, k_data - sigma * m_data, definite=sigma < 0)
+    f = new_factor(pat, backend, k_data - sigma * m_data, definite=sigma < 0)
     budget = _memory_budget()
     while _FACTORS and sum(v[0].memory for v in _FACTORS.values()) + f.memory > budget:
         _FACTORS.popitem(last=False)
