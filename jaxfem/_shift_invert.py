@@ -57,7 +57,6 @@ class SparseInverse(eqx.Module):
         host = functools.partial(_host_solve, self.pattern, self.backend, self.n_k)
         return jax.pure_callback(host, jax.ShapeDtypeStruct(r.shape, r.dtype), *args, vmap_method="expand_dims")
 
-
     def rest(self, b, lam_r, V, lam, tol: float, max_sweeps: int):
         """The rest ``z_r`` of the modal expansion (:func:`jaxfem.ritz_modes`), M-orthogonal
         to the computed modes V: ``(K − λ_r M) z_r = b_r`` per column, on the host
