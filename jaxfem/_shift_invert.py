@@ -23,6 +23,7 @@ the q computed modes (``n_extra`` ≥ the size of any cluster at the m-th mode).
 from __future__ import annotations
 
 import functools
+import warnings
 
 import equinox as eqx
 import jax
@@ -102,7 +103,8 @@ def _host_rest(pat, backend, n_k, tol, max_sweeps, sigma, *args):
 
 
 def _rest(pat, backend, kd, md, sigma, V, lam, lam_r, b, tol, max_sweeps):
-    Kc, Mc = pat.matrix(kd), pat.matrix(md)
+    Mc = pat.matrix(md)
+    both = _sparse.stacked(pat.matrix(kd), Mc)  # K and M in one product, for every group
     MV = Mc @ V
     top = lam[-1] + (lam[-1] - lam[0]) / max(len(lam) - 1, 1)  # a floor for λ_q+1
     z = np.zeros_like(b)
@@ -116,15 +118,16 @@ def _rest(pat, backend, kd, md, sigma, V, lam, lam_r, b, tol, max_sweeps):
         while stop < len(order) and lam_r[order[stop]] - shift <= SHIFT_RATE * (top - shift):
             stop += 1
         cols = order[start:stop]
-        z[:, cols] = _pcg(Kc, Mc, V, MV, f, lam_r[cols], b[:, cols], tol, max_sweeps)
+        z[:, cols] = _pcg(both, V, MV, f, lam_r[cols], b[:, cols], tol, max_sweeps)
         start = stop
     return z
 
 
-def _pcg(Kc, Mc, V, MV, f, lam_r, b, tol, max_sweeps):
+def _pcg(both, V, MV, f, lam_r, b, tol, max_sweeps):
     """Preconditioned conjugate gradients, one system per column, ``(K − λ_r M) z = b`` on
-    the M-orthogonal complement of V, preconditioner P S Pᵀ (S from ``f``); converged
-    columns leave the block."""
+    the M-orthogonal complement of V (``both``: K stacked on M), preconditioner P S Pᵀ
+    (S from ``f``); converged columns leave the block; a column still moving after
+    ``max_sweeps`` is warned about."""
     def precondition(r):
         x = f.solve(r - MV @ (V.T @ r))
         return x - V @ (MV.T @ x)
@@ -132,7 +135,6 @@ def _pcg(Kc, Mc, V, MV, f, lam_r, b, tol, max_sweeps):
     z = np.zeros_like(b)
     r = b.copy()
     y = precondition(r)
-    both = _sparse.stacked(Kc, Mc)
     p = y.copy()
     ry = np.einsum("ij,ij->j", r, y)
     active = np.arange(b.shape[1])
@@ -154,6 +156,9 @@ def _pcg(Kc, Mc, V, MV, f, lam_r, b, tol, max_sweeps):
         p[:, active] = y + pa * beta
         ry[active] = ry_new
         active = active[step > tol]
+    if len(active):
+        warnings.warn(f"eigenvector derivatives: {len(active)} of {b.shape[1]} right-hand sides still changed "
+                      f"by more than {tol:g} after {max_sweeps} conjugate-gradient sweeps", stacklevel=2)
     return z
 
 
