@@ -128,9 +128,10 @@ def write_report(diagnosis: dict, figures: dict, path) -> Path:
     ``paired_modes``, ``unpaired_test``, ``unpaired_model``, ``baseline``,
     ``sensors``, ``localisation`` (``groups``, ``nodes``), ``effects``,
     ``outcome``, ``after``; ``figures``: name → matplotlib figure (or PNG
-    path); names ``mac``, ``freq_dev``, ``localisation_groups``, ``localisation_nodes``,
-    ``effects``, ``freq_dev_after``, ``mac_after``, ``convergence`` go to their
-    section, others under "More plots". Sections without data are left out.
+    path); names ``mac``, ``freq_dev``, ``localisation_surface`` (the indicator on the
+    shells), ``localisation_groups``, ``localisation_nodes``, ``effects``,
+    ``freq_dev_after``, ``mac_after``, ``convergence`` go to their section, others under
+    "More plots". Sections without data are left out.
     **Returns:** the path written.
     """
     d, figs, out = diagnosis, dict(figures), []
@@ -165,7 +166,7 @@ def write_report(diagnosis: dict, figures: dict, path) -> Path:
         "<h3>Sensors with the lowest COMAC</h3>" + _table(sensors, ["label", "comac"]) if sensors else "",
         "<h3>Property groups</h3>" + _table(loc["groups"][:10]) if loc.get("groups") else "",
         "<h3>Nodes</h3>" + _table(loc["nodes"][:10]) if loc.get("nodes") else "",
-        *figs_of("localisation_groups", "localisation_nodes")])
+        *figs_of("localisation_surface", "localisation_groups", "localisation_nodes")])
 
     effects = [{**e, "notes": "; ".join(map(str, e.get("plausibility") or []))} for e in d.get("effects") or []]
     outcome = {"effect": "<p>The most probable effect passes every test (more probable than the baseline, χ² "

@@ -54,6 +54,21 @@ def _print_confirmation(after: dict) -> None:
                    f"→ {w['freq_dev_pct_after']:+.2f} % (beyond 2σ of the stated noise)")
 
 
+def _surface_figure(rep: dict, diag, model, test):
+    """The element indicator as a colour map on the shells, with the test's sensor grids
+    and the patch of the first-ranked effect when it names elements; None for a model
+    without shells."""
+    from .._plots import plot_surface
+
+    if len(model.quads.ids) + len(model.trias.ids) == 0:
+        return None
+    effects = rep.get("effects") or []
+    patch = effects[0] if effects and effects[0].get("eids") else None
+    return plot_surface(model, diag.element_scores, sensors=np.asarray(test.sensors.nodes).tolist(), patch=patch,
+                        label="element indicator",
+                        title="where it fails: shell elements (sensitivity + residual force)")
+
+
 def _figures(rep: dict, diag, confirmation, model, test, report: Path) -> dict:
     """The report's plots: comparison, localisation, ranking and, with an effect added, after."""
     from .. import _correlation as corr
@@ -74,6 +89,9 @@ def _figures(rep: dict, diag, confirmation, model, test, report: Path) -> dict:
                                              title="where it fails: grids"),
         "effects": plot_effect_ranking(rep["effects"]),
     }
+    surface = _surface_figure(rep, diag, model, test)
+    if surface is not None:
+        figures["localisation_surface"] = surface
     if confirmation is not None:
         res = confirmation.after
         active = ~confirmation.passive
