@@ -98,7 +98,7 @@ def _element_blocks(model: Model):
     for name in ("quads", "trias"):
         sh = getattr(model, name)
         if len(sh.ids):
-            lam = laminates(model.shell_sections, model.materials, sh.section, sh.theta, sh.zoffs)
+            lam = laminates(model.shell_sections, model.materials, sh.section, sh.theta, sh.zoffs, sh.parts, sh.nsm)
             xyz = jnp.asarray(model.xyz)[sh.nodes]
             ke = jax.vmap(shell_stiffness, in_axes=(0, 0, 0, None))(xyz, lam, sh.t_ratio, model.k6rot)
             me = jax.vmap(lambda x, lm, r: shell_mass(x, lm, r, lumped))(xyz, lam, sh.t_ratio)

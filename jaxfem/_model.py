@@ -141,7 +141,11 @@ class Shells(eqx.Module):
     ``theta``: material axis 1 measured from the projected G1→G2 side about the element
     normal [rad] (THETA, or MCID's x-axis projected); ``zoffs``: reference plane offset
     along the normal [m]; ``t_ratio``: corner thickness T1..T4 over the property's T
-    (1 where blank).
+    (1 where blank). ``parts``: factors on each element's membrane, bending and
+    transverse-shear stiffness (columns; applied as the section's ``membrane``,
+    ``bending``, ``shear``; 1 by default); ``nsm``: non-structural mass added to the
+    element's section [kg/m², 0 by default]. Both are element-wise updating values (a
+    delamination, a repair, insulation over a region).
     """
 
     ids: Int[np.ndarray, " n"]
@@ -153,6 +157,8 @@ class Shells(eqx.Module):
     t_ratio: Float[Array, "n nn"]
     k_scale: Float[Array, " n"]
     m_scale: Float[Array, " n"]
+    parts: Float[Array, "n 3"]
+    nsm: Float[Array, " n"]
 
 
 class Beams(eqx.Module):

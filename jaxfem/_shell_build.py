@@ -329,6 +329,8 @@ def _shells(cards: list[Card], nn: int, grids: _Grids, frames: dict, properties:
         t_ratio=_f64(np.reshape(t_ratio, (n, nn))),
         k_scale=_f64(np.ones(n)),
         m_scale=_f64(np.ones(n)),
+        parts=_f64(np.ones((n, 3))),
+        nsm=_f64(np.zeros(n)),
     )
 
 

@@ -83,15 +83,23 @@ def _materials(mats: Materials, rows):
 
 
 def laminates(sections: ShellSections, mats: Materials, rows: np.ndarray, theta: Float[Array, " n"],
-              zoffs: Float[Array, " n"]) -> Laminate:
+              zoffs: Float[Array, " n"], parts: Float[Array, "n 3"] | None = None,
+              nsm: Float[Array, " n"] | None = None) -> Laminate:
     """Section matrices of n elements (stacked :class:`Laminate`): ``rows`` are their rows in
-    ``sections``, ``theta`` their material angles [rad], ``zoffs`` their offsets [m].
+    ``sections``, ``theta`` their material angles [rad], ``zoffs`` their offsets [m];
+    ``parts`` element factors on membrane, bending and shear (times the section's),
+    ``nsm`` element non-structural mass [kg/m²] added to the section's.
 
     The updating factors scale A, D and S (B by √(membrane·bending)); the offset z₀ then
     moves the reference plane: ``B ← B + z₀A``, ``D ← D + 2z₀B + z₀²A``, ``I1 ← I1 + z₀I0``,
     ``I2 ← I2 + 2z₀I1 + z₀²I0`` (Reddy 2004, (3.3.17) with z shifted).
     """
     sec = jax.tree.map(lambda a: a[rows], sections)
+    if parts is not None:
+        sec = eqx.tree_at(lambda s: (s.membrane, s.bending, s.shear), sec,
+                          (sec.membrane * parts[:, 0], sec.bending * parts[:, 1], sec.shear * parts[:, 2]))
+    if nsm is not None:
+        sec = eqx.tree_at(lambda s: s.nsm, sec, sec.nsm + nsm)
     composite = jnp.asarray(sec.composite)
 
     # PSHELL: one matrix per role MID1..MID4 (a blank role contributes nothing).
