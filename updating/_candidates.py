@@ -20,25 +20,30 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-import jaxfem
-from jaxfem import MASS_BLOCKS, STIFFNESS_BLOCKS, Model
+from jaxfem import Model
 from jaxfem import _edit as edit
 
 from ._compiled import Compiled
 from ._effects import (
+    RADII,
     AbstractEffect,
+    AbstractPatch,
     AddedMass,
     BoundarySpring,
+    Delamination,
+    DistributedMass,
     FrequencyDependentStiffness,
     GroupMass,
     GroupStiffness,
     Joint,
+    PatchStiffness,
 )
 from ._extension import Extension, extension
+from ._element_sensitivity import KINDS, ElementJacobian, element_jacobian
 from ._localisation import reduction
-from ._parameters import Parameter, Parameterisation
+from ._parameters import Parameter
 from ._residuals import Problem, residuals
-from ._topology import constrained_components, element_grids, elements_at, masters
+from ._topology import constrained_components, element_grids, elements_at, masters, shell_size, total_mass
 
 
 @dataclass(eq=False)
@@ -49,7 +54,7 @@ class Candidate:
     effect at the fitted values (``effect``; the reference until then)."""
 
     reference: AbstractEffect
-    ext: Extension
+    ext: Extension | None  # None until shortlisted (a patch: :func:`patch_candidates`)
     scan: tuple | None = None
     screen: float = float("nan")
     theta0: np.ndarray | None = None
@@ -61,12 +66,12 @@ class Candidate:
         if self.effect is None:
             self.effect = self.reference
         if self.theta0 is None:
-            self.theta0 = np.zeros(self.ext.n_params)
+            self.theta0 = np.zeros(len(self.reference.prior_sd))
 
     @property
     def family(self) -> str:
         """``visco`` (a law) or ``mask``: the candidates of one family share a compiled fit."""
-        return "visco" if self.ext.visco else "mask"
+        return "visco" if self.ext is not None and self.ext.visco else "mask"
 
     def prior(self) -> tuple[np.ndarray, np.ndarray]:
         """Mean and σ of the normal prior on each free θ (the kind's ``prior_sd`` about
@@ -81,25 +86,24 @@ class Candidate:
 
 @dataclass
 class Screen:
-    """Weighted residual ``r`` at the baseline and its linearisation: ``J_k``/``J_m`` per
-    element stiffness/mass scale (ids ``k_ids``/``m_ids``), ``J_b`` the baseline
+    """Weighted residual ``r`` at the baseline and its linearisation: ``jac`` per element
+    and kind of change (:mod:`updating._element_sensitivity`), ``J_b`` the baseline
     parameters; ``row_mode``: test mode of each row; ``f_e``, ``f_ref`` (Hz)."""
 
     r: np.ndarray
-    J_k: np.ndarray
-    J_m: np.ndarray
-    k_ids: np.ndarray
-    m_ids: np.ndarray
+    jac: ElementJacobian
     J_b: np.ndarray
     row_mode: np.ndarray
     f_e: np.ndarray
     f_ref: float
 
     @classmethod
-    def at(cls, problem: Problem, theta, model: Model, params: tuple[Parameter, ...], f_e: np.ndarray) -> Screen:
-        """At θ of ``problem`` (whose first parameters are ``params`` of ``model``)."""
-        r, J_k, J_m, k_ids, m_ids = _element_jacobian(problem, np.asarray(theta))
-        screen = cls(r, J_k, J_m, k_ids, m_ids, np.zeros((len(r), 0)), _row_modes(problem),
+    def at(cls, problem: Problem, theta, model: Model, params: tuple[Parameter, ...], f_e: np.ndarray,
+           kinds=KINDS) -> Screen:
+        """At θ of ``problem`` (whose first parameters are ``params`` of ``model``); the
+        element columns of ``kinds`` (the baseline's stiffness and mass always)."""
+        jac = element_jacobian(problem, np.asarray(theta), tuple(dict.fromkeys(("k", "m") + tuple(kinds))))
+        screen = cls(jac.r, jac, np.zeros((len(jac.r), 0)), _row_modes(problem),
                      f_e, float(np.exp(np.mean(np.log(f_e)))))
         if all(p.kind in ("stiffness", "mass") and not p.nodes for p in params):
             # a log-factor on a group is the sum of its elements' scales (d(k e^θ)/dθ = k)
@@ -110,9 +114,19 @@ class Screen:
         return screen
 
     def column(self, scales: str, eids) -> np.ndarray:
-        """One column: the stiffness (``scales`` "k") or mass ("m") of ``eids`` scaled together."""
-        J, ids = (self.J_k, self.k_ids) if scales == "k" else (self.J_m, self.m_ids)
+        """One column: the change ``scales`` (a kind of :data:`~updating._element_sensitivity.KINDS`:
+        stiffness "k", mass "m", a shell part, shell non-structural mass) of ``eids`` together."""
+        J, ids = self.jac.columns.get(scales), self.jac.ids.get(scales)
+        if J is None:
+            return np.zeros((len(self.r), 1))
         return J[:, np.isin(ids, np.asarray(list(eids), np.int64))].sum(axis=1, keepdims=True)
+
+    def element_reduction(self, scales: str = "k") -> dict[int, float]:
+        """Method (a) per element: ρ of each element's change ``scales`` alone."""
+        if scales not in self.jac.columns:
+            return {}
+        rho = reduction(self.r, self.jac.columns[scales], self.J_b)
+        return {int(e): float(v) for e, v in zip(self.jac.ids[scales], rho)}
 
     def step(self, columns: np.ndarray) -> np.ndarray:
         """The linearised (Gauss–Newton) step of ``columns``' amplitudes, the baseline
@@ -141,40 +155,6 @@ def _baseline_columns(problem: Problem, theta, n_b: int) -> np.ndarray:
         return np.zeros((len(_row_modes(problem)), 0))
     J = Compiled(jax.jacfwd(_flat))(jnp.asarray(theta), problem)
     return np.asarray(J)[:, :n_b]
-
-
-def _element_jacobian_fn(theta, problem: Problem):
-    model0 = problem.model(theta)
-
-    def fn(uk, um):
-        m = model0
-        for name, u in zip(STIFFNESS_BLOCKS, uk):
-            k = getattr(m, name).k_scale
-            m = eqx.tree_at(lambda x, name=name: getattr(x, name).k_scale, m, jnp.where(k == 0, u, k * (1 + u)))
-        for name, u in zip(MASS_BLOCKS, um):
-            ms = getattr(m, name).m_scale
-            m = eqx.tree_at(lambda x, name=name: getattr(x, name).m_scale, m, jnp.where(ms == 0, u, ms * (1 + u)))
-        p = eqx.tree_at(lambda q: (q.values, q.parameterisation, q.extension), problem,
-                        (jaxfem.partition(m)[0], Parameterisation((), (), (), (), ()), None),
-                        is_leaf=lambda x: x is None)
-        return _flat(jnp.zeros(0), p)
-
-    structure = problem.structure.value
-    uk = tuple(jnp.zeros(len(getattr(structure, n).ids)) for n in STIFFNESS_BLOCKS)
-    um = tuple(jnp.zeros(len(getattr(structure, n).ids)) for n in MASS_BLOCKS)
-    r = fn(uk, um)
-    jk, jm = jax.jacfwd(fn, argnums=(0, 1))(uk, um)
-    return r, jnp.concatenate(jk, axis=1), jnp.concatenate(jm, axis=1)
-
-
-def _element_jacobian(problem: Problem, theta):
-    """Weighted residual r at θ and its derivative w.r.t. each element's stiffness and mass
-    scale (a dormant element: w.r.t. waking it at its reference value)."""
-    r, jk, jm = Compiled(_element_jacobian_fn)(jnp.asarray(theta), problem)
-    s = problem.structure.value
-    k_ids = np.concatenate([getattr(s, n).ids for n in STIFFNESS_BLOCKS])
-    m_ids = np.concatenate([getattr(s, n).ids for n in MASS_BLOCKS])
-    return np.asarray(r), np.asarray(jk), np.asarray(jm), k_ids, m_ids
 
 
 # ---------------------------------------------------------------------------------------
@@ -275,6 +255,65 @@ def node_candidates(aug: Model, dormant, screen: Screen) -> list[Candidate]:
         c = Candidate(ref, extension(aug, **{f"{ref.scales}_add": ids}), scan=(step, -3.0))
         c.screen = float(reduction(screen.r, g, screen.J_b)[0])
         out.append(c)
+    return out
+
+
+PATCHES = ((Delamination, {}), (PatchStiffness, {"part": "membrane"}), (PatchStiffness, {"part": "bending"}),
+           (DistributedMass, {}))  # the patch effects offered at each grid, each radius of RADII
+
+
+def shell_grids(model: Model, region: list[int]) -> list[int]:
+    """The grids of ``region`` that carry shells."""
+    shells = set(np.concatenate([model.quads.ids, model.trias.ids]).tolist())
+    return [g for g in region if shells & set(elements_at(model, g))]
+
+
+def patch_candidates(model: Model, region: list[int], screen: Screen, kinds) -> list[Candidate]:
+    """Patches of every kind in ``kinds`` (:data:`PATCHES`) about each grid of ``region``
+    that carries shells, for each radius of the ladder :data:`~updating._effects.RADII`
+    (× the shell size): screened by ρ of their column, to start at the linearised step."""
+    h, mass = shell_size(model), total_mass(model)
+    out = []
+    for node in shell_grids(model, region):
+        for radius in RADII:
+            for cls, options in PATCHES:
+                if cls.kind in kinds:
+                    patch = cls.at(model, node, radius * h, **options)
+                    out.append(patch_candidate(patch, model, screen, screen.f_e, mass))
+    return out
+
+
+def patch_candidate(patch: AbstractPatch, model: Model, screen: Screen | None, f_e, mass: float) -> Candidate:
+    """One patch at its reference (a distributed mass: 1 % of ``mass``, the total),
+    screened (``screen`` None: a neighbour tried after screening, to start where
+    ``theta0`` is set); its masks are made when it is shortlisted (:func:`with_masks`)."""
+    ref = patch.carrying(model, 0.01 * mass) if isinstance(patch, DistributedMass) else patch.at_reference(model, f_e)
+    if screen is None:
+        return Candidate(ref, None, scan=tuple(ref.scan))
+    g = screen.column(ref.scales, ref.elements(model))
+    u = float(screen.step(g)[0])
+    start = np.log(np.clip(u / ref.nsm, np.exp(-3.0), np.exp(3.0))) if ref.scales == "nsm" else \
+        np.log(np.clip(1.0 + u, np.exp(-4.0), np.exp(1.0)))
+    return Candidate(ref, None, scan=(float(start),) + tuple(ref.scan),
+                     screen=float(reduction(screen.r, g, screen.J_b)[0]))
+
+
+def with_masks(cands: list[Candidate], aug: Model) -> None:
+    """Give the candidates without masks theirs, on the shared model ``aug``."""
+    for c in cands:
+        if c.ext is None:
+            c.ext = c.reference.extension(aug, aug)
+
+
+def patch_neighbours(model: Model, c: Candidate, f_e) -> list[AbstractPatch]:
+    """The patches next to a fitted one: the same radius about each neighbouring shell grid,
+    and the next radius up and down the ladder about the same grid."""
+    ref = c.reference
+    h = shell_size(model)
+    step = int(np.argmin(np.abs(np.asarray(RADII) * h - ref.radius)))
+    options = {"part": ref.part} if isinstance(ref, PatchStiffness) else {}
+    out = [type(ref).at(model, g, ref.radius, **options) for g in shell_grids(model, neighbours(model, ref.centre))]
+    out += [type(ref).at(model, ref.centre, RADII[i] * h, **options) for i in (step - 1, step + 1) if 0 <= i < len(RADII)]
     return out
 
 
