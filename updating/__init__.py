@@ -32,6 +32,10 @@ from ._effects import FrequencyDependentStiffness as FrequencyDependentStiffness
 from ._effects import GroupMass as GroupMass
 from ._effects import GroupStiffness as GroupStiffness
 from ._effects import Joint as Joint
+from ._effects import Delamination as Delamination
+from ._effects import DistributedMass as DistributedMass
+from ._effects import PatchStiffness as PatchStiffness
+from ._reference import relative_to as relative_to
 from ._effects import at_reference as at_reference
 from ._effects import effect_parameters as effect_parameters
 from ._effects import parse_effect as parse_effect

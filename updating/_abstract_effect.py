@@ -120,9 +120,10 @@ class AbstractEffect(eqx.Module):
 
 def spread(value: float, sd: float, unit: str) -> str:
     """``value unit (±…)`` for a quantity known to a log-factor standard deviation ``sd``:
-    ± in the unit up to sd = 0.3, else "within a factor" e^sd."""
+    ± in the unit up to sd = 0.3, else "within a factor" e^sd (``unit`` "": a pure number)."""
+    u = f" {unit}" if unit else ""
     if not np.isfinite(sd):
-        return f"{value:.3g} {unit} (not determined by the data)"
+        return f"{value:.3g}{u} (not determined by the data)"
     if sd <= 0.3:
-        return f"{value:.3g} {unit} (±{abs(value) * sd:.2g} {unit})"
-    return f"{value:.3g} {unit} (within a factor {np.exp(sd):.2g})"
+        return f"{value:.3g}{u} (±{abs(value) * sd:.2g}{u})"
+    return f"{value:.3g}{u} (within a factor {np.exp(sd):.2g})"

@@ -39,6 +39,7 @@ from identification import ModalData
 from jaxfem import Model
 
 from ._candidates import (
+    PATCHES,
     Candidate,
     Screen,
     augment,
@@ -48,16 +49,21 @@ from ._candidates import (
     neighbours,
     node_candidates,
     node_max,
+    patch_candidate,
+    patch_candidates,
+    patch_neighbours,
     region_structures,
+    shell_grids,
     shortlist,
     structural_candidates,
+    with_masks,
 )
 from ._correlation import comac, pair_modes
-from ._effects import KINDS, AbstractEffect
+from ._effects import KINDS, AbstractEffect, AbstractPatch
 from ._engine import Settings
 from ._evidence import Fits, combine, cross_validate, evidence, fit, fold_masks, scan_costs, scan_start, verdict
 from ._extension import extension
-from ._localisation import group_scores, reduction, residual_forces
+from ._localisation import group_scores, residual_forces
 from ._parameters import Options, Parameter, ParameterSet
 from ._report import json_number, rms_pct
 from ._residuals import evaluate
@@ -156,9 +162,8 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     C = np.asarray(nominal_problem.C)
     elem_b, node_b = residual_forces(model, np.asarray(nominal_problem.lam_e), np.asarray(nominal_problem.phi_e), C)
     say(f"localising the error (sensitivity of every element at the nominal model, {elapsed()})")
-    nominal_screen = Screen.at(nominal_problem, np.zeros(n_b), model, params, f_e)
-    node_nominal = combine(node_max(model, dict(zip(nominal_screen.k_ids.tolist(), reduction(
-        nominal_screen.r, nominal_screen.J_k, nominal_screen.J_b).tolist()))), node_b)
+    nominal_screen = Screen.at(nominal_problem, np.zeros(n_b), model, params, f_e, kinds=("k", "m"))
+    node_nominal = combine(node_max(model, nominal_screen.element_reduction("k")), node_b)
     nodes = localised_grids(model, nominal_screen, node_nominal, options.max_nodes, options.region)
     structures = region_structures(model, nodes, node_nominal, options.kinds, options.max_structural)
     mass = total_mass(model)
@@ -176,11 +181,17 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     # -- screening at the baseline: every element's stiffness and mass (the Jacobian), the
     # joints and supports by a scan of their stiffness
     say(f"screening (sensitivity of every element) ({elapsed()})")
-    screen = Screen.at(problem, base["theta"], model, params, f_e)
-    elem_a = {int(e): float(v) for e, v in zip(screen.k_ids, reduction(screen.r, screen.J_k, screen.J_b))}
+    patches = [cls.kind for cls, _ in PATCHES if cls.kind in options.kinds] if shell_grids(model, nodes) else []
+    screen = Screen.at(problem, base["theta"], model, params, f_e,
+                       kinds=("k", "m") + (("membrane", "bending", "shear", "nsm") if patches else ()))
+    elem_a = screen.element_reduction("k")
     node_a = node_max(aug, elem_a)
     cands = group_candidates(model, aug, params, screen) + node_candidates(aug, dormant, screen)
-    cands = [c for c in cands if c.effect.kind in options.kinds]
+    kinds = options.kinds
+    if jaxfem.use_sparse(aug, problem.solver) and "frequency_dependent_stiffness" in kinds:
+        say("frequency laws are not offered: they need the dense eigensolver")
+        kinds = tuple(k for k in kinds if k != "frequency_dependent_stiffness")
+    cands = [c for c in cands if c.effect.kind in kinds] + patch_candidates(model, nodes, screen, patches)
     structural = structural_candidates(aug, stiffened)
     scans = {c: (list(c.scan), list(scan_costs(fits, problem, c.ext, theta_b, c.scan))) for c in structural}
     for c in sorted(structural, key=lambda c: min(scans[c][1]))[:2]:  # the best two: each factor alone too
@@ -194,7 +205,8 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
         c.screen, c.theta0 = 1 - float(np.min(costs)) / base["cost"], np.atleast_1d(grid[int(np.argmin(costs))])
         cands.append(c)
     node_score = combine(node_a, node_b)
-    short = shortlist(cands, options.shortlist, options.per_kind, options.kinds, options.within)
+    short = shortlist(cands, options.shortlist, options.per_kind, kinds, options.within)
+    with_masks(short, aug)
     say(f"{len(cands)} candidates screened; fitting {len(short)} ({elapsed()})")
 
     for c in short:  # the better of the linearised step and none (the joints' scans are done)
@@ -210,6 +222,8 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     # -- the place refined: an added mass or spring moves to a neighbouring grid while that fits better
     for c0, c1 in _refine_places(fits, problem, aug, cands, short, base, theta_b):
         say(f"  {c1.reference.kind} moved from grid {c0.reference.nodes[0]} to {c1.reference.nodes[0]} ({elapsed()})")
+    for c0, c1 in _refine_patches(fits, problem, model, aug, short, base, theta_b, f_e, say):
+        say(f"  {c1.reference.kind} moved from {c0.reference.where()} to {c1.reference.where()} ({elapsed()})")
 
     # -- evidence; the most probable candidates cross-validated
     n_rows = (ne, ne * ns)
@@ -283,6 +297,43 @@ def _refine_places(fits: Fits, problem, aug: Model, cands: list[Candidate], shor
                 c.theta0 = scan_start(fits, problem, c.ext, theta_b, c.scan)
                 c.result = fit(fits, problem, c.ext, np.concatenate([theta_b, c.theta0]))
                 short.append(c)
+            step = min(new, key=lambda c: c.result["cost"], default=best)
+            if step.result["cost"] >= best.result["cost"]:
+                break
+            moves.append((best, step))
+            best = step
+    return moves
+
+
+def _refine_patches(fits: Fits, problem, model: Model, aug: Model, short: list[Candidate], base: dict,
+                    theta_b: np.ndarray, f_e, say) -> list[tuple[Candidate, Candidate]]:
+    """Hill-climb of the two best patch kinds (kind and part) that fit better than the
+    baseline: the best fitted patch is fitted about each neighbouring shell grid and with
+    the next radius up and down the ladder, and moves while one fits better (centre
+    refined between neighbours, radius chosen by the data). Fits join ``short``."""
+    def key(e):
+        return e.kind, getattr(e, "part", ""), e.nodes, round(e.radius, 9)
+
+    mass = total_mass(model)
+    fitted = {key(c.reference): c for c in short if isinstance(c.reference, AbstractPatch)}
+    best_of: dict = {}
+    for c in fitted.values():
+        k = key(c.reference)[:2]
+        if c.result["cost"] < base["cost"] and (k not in best_of or c.result["cost"] < best_of[k].result["cost"]):
+            best_of[k] = c
+    moves = []
+    for best in sorted(best_of.values(), key=lambda c: c.result["cost"])[:2]:
+        while True:
+            new = []
+            for patch in patch_neighbours(model, best, f_e):
+                if key(patch) not in fitted:
+                    c = patch_candidate(patch, model, None, f_e, mass)
+                    with_masks([c], aug)
+                    c.theta0 = best.result["theta"][len(theta_b):]
+                    c.result = fit(fits, problem, c.ext, np.concatenate([theta_b, c.theta0]))
+                    fitted[key(patch)] = c
+                    short.append(c)
+                new.append(fitted[key(patch)])
             step = min(new, key=lambda c: c.result["cost"], default=best)
             if step.result["cost"] >= best.result["cost"]:
                 break

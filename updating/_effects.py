@@ -35,15 +35,17 @@ from jaxfem import Model
 from jaxfem import _edit as edit
 
 from ._abstract_effect import AbstractEffect, ids_field, label_field, spread, value_field
-from ._extension import K_BLOCKS, Extension, extension
+from ._extension import K_BLOCKS, PARTS, Extension, extension
 from ._parameters import Parameter
 from ._topology import (
     constrained_components,
     elements_at,
     joint_reference,
     masters,
+    patch_elements,
     property_groups,
     stiffness_pids,
+    shell_area,
     structural_pids,
     total_mass,
 )
@@ -215,6 +217,209 @@ class FrequencyDependentStiffness(AbstractGroupEffect):
         a_sd = f"±{(1 + self.a) * s[1]:.2g}" if np.isfinite(s[1]) else "not determined by the data"
         return (f"give {self.where()} a frequency-dependent stiffness E(f) = E0·(1 {self.alpha:+.3f})·"
                 f"(1 + a·ln(f / {self.f_ref_hz:.3g} Hz)) with a = {self.a:.3f} ({a_sd})")
+
+
+# ---------------------------------------------------------------------------------------
+# patches of shells: a delamination, a local loss of stiffness, distributed mass
+
+
+RADII = (0.75, 1.7, 2.6, 3.6)  # patch radius ladder, in shell element sizes: about a grid 4, 12, 24 and 44 square shells
+
+
+class AbstractPatch(AbstractEffect):
+    """An effect on the shells of a patch: those whose centres lie within ``radius`` (m) of
+    grid ``nodes[0]`` (and at least those attached to it), or the shells ``eids`` if given.
+    Its one free parameter θ is a log-factor on the patch's value."""
+
+    @property
+    def centre(self) -> int:
+        return self.nodes[0]
+
+    def elements(self, model: Model) -> np.ndarray:
+        """The patch's shell element ids."""
+        if self.eids:
+            return np.asarray(self.eids, np.int64)
+        return np.asarray(patch_elements(model, self.centre, self.radius), np.int64)
+
+    def located(self, model: Model) -> AbstractPatch:
+        """This patch with its elements listed (``eids``) and its location in words."""
+        eids = tuple(int(e) for e in self.elements(model))
+        label = self.label or f"{len(eids)} shells within {1000 * self.radius:.0f} mm of grid {self.centre}"
+        return replace(self, eids=eids, label=label)
+
+    def __check_init__(self):
+        if len(self.nodes) != 1 and not self.eids:
+            raise ValueError(f"effect {self.kind}: give its centre grid (nodes) and radius, or its eids")
+        if not self.eids and not self.radius > 0:
+            raise ValueError(f"effect {self.kind}: radius must be > 0 m")
+
+    def where(self) -> str:
+        return self.label or (f"shells within {1000 * self.radius:.0f} mm of grid {self.centre}" if self.nodes
+                              else super().where())
+
+    def to_json(self) -> dict:
+        return {**super().to_json(), "radius_m": self.radius}
+
+    @classmethod
+    def candidates(cls, model: Model) -> list[AbstractPatch]:
+        """Patches are placed where the diagnosis localised the error (:meth:`at`), not listed."""
+        return []
+
+    @classmethod
+    def at(cls, model: Model, node: int, radius: float, **kwargs) -> AbstractPatch:
+        """The patch of radius ``radius`` (m) about grid ``node``, its elements listed."""
+        return cls(nodes=(node,), radius=radius, **kwargs).located(model)
+
+    def updated(self, theta) -> AbstractPatch:
+        name = self.value_names[0]
+        return replace(self, **{name: float(getattr(self, name) * np.exp(np.asarray(theta, float)[0]))})
+
+
+class AbstractPatchPart(AbstractPatch):
+    """A factor on one part of the patch's shell stiffness (:class:`jaxfem.Shells`
+    ``parts``: membrane, bending or transverse shear), 1 = intact. Value ``factor``."""
+
+    part: ClassVar[str]
+
+    def apply(self, model: Model) -> Model:
+        eids, col, factor = self.elements(model), PARTS.index(self.part), self._need("factor")
+        for name in ("quads", "trias"):
+            sh = getattr(model, name)
+            at = jnp.asarray(np.isin(sh.ids, eids))
+            model = eqx.tree_at(lambda m, name=name: getattr(m, name).parts, model,
+                                sh.parts.at[:, col].multiply(jnp.where(at, factor, 1.0)))
+        return model
+
+    def _kind_of_part(self) -> str:
+        return "transverse_shear" if self.part == "shear" else self.part
+
+    def at_reference(self, model: Model, f_test_hz) -> AbstractPatchPart:
+        """Intact (factor 1)."""
+        return replace(self.located(model), factor=1.0)
+
+    def parameters(self, before: Model, after: Model) -> tuple[Parameter, ...]:
+        return (Parameter(self.kind, self._kind_of_part(), eids=tuple(self.elements(before)), bounds=(-0.99, 0.5)),)
+
+    def extension(self, model: Model, extended: Model) -> Extension:
+        return extension(extended, part_log=self.elements(model), part=self.part)
+
+    def plausibility(self, total_mass: float, reference: AbstractEffect | None = None) -> list[str]:
+        if self.factor > 1.5:
+            return [f"{self.part} stiffness × {self.factor:.2f}: a damage that stiffens"]
+        return []
+
+    def advice(self, sd) -> str:
+        s = float(np.atleast_1d(sd)[0])
+        return (f"{self.verb} in the {self.where()}: {self.part} stiffness × {spread(self.factor, s, '')}, "
+                f"{100 * (self.factor - 1):+.0f} %")
+
+
+class Delamination(AbstractPatchPart):
+    """A delamination: the transverse-shear stiffness of a patch reduced (the thesis models
+    it as a 90 % reduction of G1Z and G2Z, §5.3.2.1). Value ``factor`` (1 = intact)."""
+
+    nodes: tuple[int, ...] = ids_field()
+    eids: tuple[int, ...] = ids_field()
+    label: str = label_field()
+    radius: float = eqx.field(static=True, default=0.0)
+    factor: float | None = value_field()
+
+    kind = "delamination"
+    value_names = ("factor",)
+    part = "shear"
+    verb = "a delamination"
+    scales = "shear"
+    scan = (0.0, -1.2, -2.3, -3.5)
+    prior_sd = (2.0,)  # a 90 % loss (θ = −2.3) lies within 1.2σ
+
+
+class PatchStiffness(AbstractPatchPart):
+    """Local loss (or gain) of membrane or bending stiffness in a patch: impact damage, a
+    softer repair. ``part``: "membrane" or "bending". Value ``factor`` (1 = intact)."""
+
+    nodes: tuple[int, ...] = ids_field()
+    eids: tuple[int, ...] = ids_field()
+    label: str = label_field()
+    radius: float = eqx.field(static=True, default=0.0)
+    part: str = eqx.field(static=True, default="bending")
+    factor: float | None = value_field()
+
+    kind = "patch_stiffness"
+    value_names = ("factor",)
+    verb = "a local stiffness change"
+    scan = (0.0, -0.7, -1.6, 0.4)
+    prior_sd = (1.0,)
+
+    def __check_init__(self):
+        super().__check_init__()
+        if self.part not in ("membrane", "bending"):
+            raise ValueError(f"effect patch_stiffness: part must be membrane or bending, got {self.part!r}")
+
+    @property
+    def scales(self) -> str:
+        return self.part
+
+    def where(self) -> str:
+        return f"{self.part} of the " + super().where()
+
+    def to_json(self) -> dict:
+        return {**super().to_json(), "part": self.part}
+
+
+class DistributedMass(AbstractPatch):
+    """Non-structural mass spread over a patch (insulation, sealant, payload). Value
+    ``nsm`` (kg/m², :class:`jaxfem.Shells` ``nsm``)."""
+
+    nodes: tuple[int, ...] = ids_field()
+    eids: tuple[int, ...] = ids_field()
+    label: str = label_field()
+    radius: float = eqx.field(static=True, default=0.0)
+    nsm: float | None = value_field()
+
+    kind = "distributed_mass"
+    value_names = ("nsm",)
+    scales = "nsm"
+    scan = SCAN
+    prior_sd = (1.5,)  # as an added mass
+
+    def apply(self, model: Model) -> Model:
+        eids = self.elements(model)
+        for name in ("quads", "trias"):
+            sh = getattr(model, name)
+            at = jnp.asarray(np.isin(sh.ids, eids), dtype=jnp.float64)
+            model = eqx.tree_at(lambda m, name=name: getattr(m, name).nsm, model, sh.nsm + at * self._need("nsm"))
+        return model
+
+    def at_reference(self, model: Model, f_test_hz) -> DistributedMass:
+        """1 % of the total mass, spread over the patch."""
+        return self.carrying(model, 0.01 * total_mass(model))
+
+    def carrying(self, model: Model, mass: float) -> DistributedMass:
+        """This patch carrying ``mass`` (kg) spread evenly over its area."""
+        patch = self.located(model)
+        return replace(patch, nsm=mass / shell_area(model, patch.elements(model)))
+
+    def parameters(self, before: Model, after: Model) -> tuple[Parameter, ...]:
+        return (Parameter(self.kind, "nsm", eids=tuple(self.elements(before)), bounds=(-1.0, 10.0)),)
+
+    def extension(self, model: Model, extended: Model) -> Extension:
+        return extension(extended, nsm_add=self.elements(model), nsm=self._need("nsm"))
+
+    def mass(self, model: Model) -> float:
+        """The mass added (kg)."""
+        return self._need("nsm") * shell_area(model, self.elements(model))
+
+    def plausibility(self, total_mass: float, reference: AbstractEffect | None = None) -> list[str]:
+        if reference is not None and self.nsm > 20.0 * reference.nsm:
+            return [f"{self.nsm:.3g} kg/m² is {self.nsm / reference.nsm / 100:.0f} % of the total mass over the patch"]
+        return []
+
+    def advice(self, sd) -> str:
+        return (f"add non-structural mass of {spread(self.nsm, float(np.atleast_1d(sd)[0]), 'kg/m²')} "
+                f"over the {self.where()}")
+
+
+PATCH_KINDS = (Delamination, PatchStiffness, DistributedMass)
 
 
 # ---------------------------------------------------------------------------------------
@@ -465,23 +670,25 @@ class AddedMass(AbstractAddedElements):
 
 
 _TYPES: dict[str, type[AbstractEffect]] = {t.kind: t for t in (
-    GroupStiffness, GroupMass, Joint, AddedMass, BoundarySpring, FrequencyDependentStiffness)}
+    GroupStiffness, GroupMass, Joint, AddedMass, BoundarySpring, FrequencyDependentStiffness, *PATCH_KINDS)}
 KINDS = tuple(_TYPES)
 
 
-def Effect(kind: str, pids=(), eids=(), nodes=(), values: dict | None = None, label: str = "") -> AbstractEffect:
+def Effect(kind: str, pids=(), eids=(), nodes=(), values: dict | None = None, label: str = "",
+           **location) -> AbstractEffect:
     """The effect of a kind by its JSON/CLI name, e.g. ``Effect("joint", nodes=(6001,),
     values={"k_trans": 1e8, "k_rot": 4e4})``: the convenient constructor of the typed
-    classes (:class:`Joint` here). ``values``: SI, by the class' value names."""
+    classes (:class:`Joint` here). ``values``: SI, by the class' value names;
+    ``location``: a patch's ``radius`` (m) and ``part``."""
     if kind not in _TYPES:
         raise ValueError(f"effect kind {kind!r} is not one of {KINDS}")
     cls = _TYPES[kind]
     names = {f.name for f in fields(cls)}
-    where = {k: v for k, v in (("pids", pids), ("eids", eids), ("nodes", nodes)) if len(v)}
+    where = {k: v for k, v in (("pids", pids), ("eids", eids), ("nodes", nodes)) if len(v)} | location
     wrong = sorted(set(where) - names) + sorted(set(values or {}) - set(cls.value_names))
     if wrong:
         raise ValueError(f"effect {kind}: {wrong} not among its locations and values "
-                         f"{sorted(names & {'pids', 'eids', 'nodes'})}, {list(cls.value_names)}")
+                         f"{sorted(names & {'pids', 'eids', 'nodes', 'radius', 'part'})}, {list(cls.value_names)}")
     return cls(**where, **(values or {}), label=label)
 
 
@@ -489,17 +696,28 @@ def parse_effect(spec: str) -> AbstractEffect:
     """``KIND:TARGET`` as on the command line, e.g. ``joint:node=6001``,
     ``joint:node=3007;pids=21,22``, ``stiffness:pid=41``, ``mass:eids=201-205``,
     ``added_mass:node=2015``, ``boundary_spring:node=1``,
-    ``frequency_dependent_stiffness:pid=41``."""
+    ``frequency_dependent_stiffness:pid=41``, ``delamination:node=1234;radius=0.03``,
+    ``patch_stiffness:node=1234;radius=0.05;part=bending`` (radius in m)."""
     kind, _, target = spec.partition(":")
     if kind not in KINDS or not target:
         raise ValueError(f"effect {spec!r}: write KIND:TARGET with KIND one of {KINDS}, "
                          "TARGET like pid=41, node=1029, eids=201-205 (';' between several)")
     where: dict[str, tuple[int, ...]] = {"pids": (), "eids": (), "nodes": ()}
+    location: dict = {}
     for part in target.split(";"):
         key, _, value = part.partition("=")
         key = {"pid": "pids", "eid": "eids", "node": "nodes"}.get(key.strip(), key.strip())
+        if key == "part" and value:
+            location["part"] = value.strip()
+            continue
+        if key == "radius" and value:
+            try:
+                location["radius"] = float(value)
+            except ValueError:
+                raise ValueError(f"effect {spec!r}: radius {value!r} is not a number of metres") from None
+            continue
         if key not in where or not value:
-            raise ValueError(f"effect {spec!r}: unknown target {part!r} (pid(s)=, eid(s)=, node(s)=)")
+            raise ValueError(f"effect {spec!r}: unknown target {part!r} (pid(s)=, eid(s)=, node(s)=, radius=, part=)")
         ids: list[int] = []
         try:
             for item in value.split(","):
@@ -508,7 +726,7 @@ def parse_effect(spec: str) -> AbstractEffect:
         except ValueError:
             raise ValueError(f"effect {spec!r}: {part!r} is not a list of integers") from None
         where[key] = tuple(ids)
-    return Effect(kind, **where)
+    return Effect(kind, **where, **location)
 
 
 def at_reference(model: Model, effect: AbstractEffect, f_test_hz) -> AbstractEffect:

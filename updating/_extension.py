@@ -18,6 +18,8 @@ from jaxfem import Model
 from jaxfem import MASS_BLOCKS as M_BLOCKS
 from jaxfem import STIFFNESS_BLOCKS as K_BLOCKS
 
+SHELL_BLOCKS = ("quads", "trias")
+PARTS = ("membrane", "bending", "shear")  # the columns of Shells.parts
 _THETA_MAX = 25.0  # |log-factor| beyond which a trial step is clipped (e^25 ≈ 7e10)
 
 
@@ -39,6 +41,8 @@ class Extension(eqx.Module):
     f_ref: Float[Array, ""]
     a0: Float[Array, ""]
     k_log_2: tuple[Float[Array, " n"], ...]
+    part_log: tuple[Float[Array, "n 3"], ...]
+    nsm_add: tuple[Float[Array, " n"], ...]
     visco: bool = eqx.field(static=True)
     split: bool = eqx.field(static=True)
 
@@ -58,6 +62,10 @@ class Extension(eqx.Module):
             blk = getattr(model, name)
             model = eqx.tree_at(lambda m, name=name: getattr(m, name).m_scale, model,
                                 blk.m_scale * jnp.exp(theta[0] * log) + add * s)
+        for name, part, nsm in zip(SHELL_BLOCKS, self.part_log, self.nsm_add):
+            blk = getattr(model, name)
+            model = eqx.tree_at(lambda m, name=name: (getattr(m, name).parts, getattr(m, name).nsm), model,
+                                (blk.parts * jnp.exp(theta[0] * part), blk.nsm + nsm * s))
         if self.visco:
             a = self.a0 + jnp.expm1(jnp.minimum(theta[1], 1.0))  # a step of at most e − 1
             law = jaxfem.Viscoelastic(self.k_log, a, self.f_ref)
@@ -66,10 +74,13 @@ class Extension(eqx.Module):
 
 
 def extension(model: Model, *, k_log=(), k_add=(), m_log=(), m_add=(), f_ref: float | None = None,
-              a0: float = 0.0, k_log_2=()) -> Extension:
+              a0: float = 0.0, k_log_2=(), part_log=(), part: str = "shear", nsm_add=(), nsm: float = 0.0
+              ) -> Extension:
     """Masks from element ids: ``k_log`` etc. list the element ids of each role; a law
     (``visco``) when ``f_ref`` (Hz) is given, its coefficient starting at ``a0``; a second
-    log-factor (``split``) when ``k_log_2`` lists elements."""
+    log-factor (``split``) when ``k_log_2`` lists elements; the shells ``part_log`` get the
+    log-factor on their ``part`` ("membrane", "bending" or "shear"), the shells ``nsm_add``
+    the non-structural mass ``nsm`` (kg/m²) at θ₀ = 0."""
 
     def masks(blocks, ids):
         ids = np.asarray(list(ids), np.int64)
@@ -77,6 +88,9 @@ def extension(model: Model, *, k_log=(), k_add=(), m_log=(), m_add=(), f_ref: fl
 
     if f_ref is not None and len(k_log_2):
         raise ValueError("an extension has a frequency law or a second factor, not both")
+    column = np.arange(3) == PARTS.index(part)
+    parts = tuple(m[:, None] * jnp.asarray(column, dtype=jnp.float64) for m in masks(SHELL_BLOCKS, part_log))
     return Extension(masks(K_BLOCKS, k_log), masks(K_BLOCKS, k_add), masks(M_BLOCKS, m_log),
                      masks(M_BLOCKS, m_add), jnp.asarray(f_ref or 1.0), jnp.asarray(float(a0)),
-                     masks(K_BLOCKS, k_log_2), f_ref is not None, len(k_log_2) > 0)
+                     masks(K_BLOCKS, k_log_2), parts, tuple(m * nsm for m in masks(SHELL_BLOCKS, nsm_add)),
+                     f_ref is not None, len(k_log_2) > 0)

@@ -37,6 +37,8 @@ _SECTION = {"A", "I1", "I2", "J"}
 _SHELL_FACTOR = {"membrane": "membrane", "bending": "bending", "transverse_shear": "shear"}
 _SHELL = set(_SHELL_FACTOR) | {"t", "theta"}
 _PIDS_ONLY = set(_MATERIAL) | _SECTION | _SHELL | {"nsm", "a"}
+# Kinds that also take shell element ids: the element's own factor (Shells.parts) or NSM (Shells.nsm).
+_SHELL_ELEMENT = {"membrane": 0, "bending": 1, "transverse_shear": 2, "nsm": None}
 # Where sections name their material rows: (section table, column).
 _MATERIAL_COLUMNS = (("beam_sections", "material"), ("rod_sections", "material"),
                      ("shell_sections", "materials"), ("shell_sections", "ply_material"))
@@ -56,7 +58,9 @@ class Parameter:
     materials), ``t`` (thickness: PSHELL T, every PCOMP ply and Z0), ``theta`` (every
     PCOMP ply angle, additive in radians: ``θ_ply = θ_ply,0 + α``); ``nsm`` (shell, beam
     and rod sections). Targets: ``pids`` (property ids), ``eids`` (element ids) or, for
-    ``k``/``m``, ``nodes`` (grid ids). ``bounds``: plausible range of α, reported (not
+    ``k``/``m``, ``nodes`` (grid ids); ``membrane``, ``bending``, ``transverse_shear``
+    and ``nsm`` on shell ``eids`` scale those elements' own factor or non-structural mass
+    (:class:`jaxfem.Shells` ``parts``, ``nsm``: a patch). ``bounds``: plausible range of α, reported (not
     enforced).
     """
 
@@ -76,7 +80,9 @@ class Parameter:
             raise ValueError(f"parameter {self.name!r}: nodes = [...] is only for kinds k and m")
         if self.kind == "m" and self.pids:
             raise ValueError(f"parameter {self.name!r}: kind m (CONM2) targets eids or nodes, not pids")
-        if self.kind in _PIDS_ONLY:
+        if self.kind in _SHELL_ELEMENT and self.eids and not self.pids:
+            pass
+        elif self.kind in _PIDS_ONLY:
             if self.eids or not self.pids:
                 raise ValueError(f"parameter {self.name!r}: kind {self.kind} needs pids = [...]")
 
@@ -229,6 +235,16 @@ def _scale_rows(values: Array, rows: np.ndarray, factor) -> Array:
 
 
 def _scale_physical(model: Model, p: Parameter, factor) -> Model:
+    if p.kind in _SHELL_ELEMENT and p.eids:
+        for name in ("quads", "trias"):
+            sh, rows = getattr(model, name), _rows(getattr(model, name).ids, p.eids)
+            col = _SHELL_ELEMENT[p.kind]
+            if col is None:
+                model = eqx.tree_at(lambda m: getattr(m, name).nsm, model, _scale_rows(sh.nsm, rows, factor))
+            else:
+                parts = sh.parts.at[:, col].set(_scale_rows(sh.parts[:, col], rows, factor))
+                model = eqx.tree_at(lambda m: getattr(m, name).parts, model, parts)
+        return model
     if p.kind in _MATERIAL:
         field_name, types = _MATERIAL[p.kind]
         rows = _material_rows(model, p.pids, types)
@@ -302,6 +318,15 @@ _TYPE_NAMES = {MAT1: "MAT1", MAT2: "MAT2", MAT8: "MAT8"}
 
 def _target_problem(model: Model, p: Parameter) -> str | None:
     """Why the target properties of a pids-only kind have nothing that ``p`` scales (None: fine)."""
+    if p.kind in _SHELL_ELEMENT and p.eids:
+        shells = np.concatenate([model.quads.ids, model.trias.ids])
+        other = sorted(set(p.eids) - set(shells.tolist()))
+        if other:
+            return f"eids {other[:10]} are not shells (kind {p.kind} on eids acts on CQUAD4/CTRIA3 elements)"
+        if p.kind == "nsm" and not any(np.any(np.asarray(getattr(model, n).nsm)[_rows(getattr(model, n).ids, p.eids)])
+                                       for n in ("quads", "trias")):
+            return "the elements' own NSM is 0: a relative factor cannot change it (an effect sets it first)"
+        return None
     if p.kind in _MATERIAL:
         _, types = _MATERIAL[p.kind]
         used = _section_materials(model, p.pids)

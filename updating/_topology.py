@@ -10,7 +10,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxfem import STIFFNESS_BLOCKS, STRUCTURAL_BLOCKS, Model
-from jaxfem.elements import laminates, shell_mass
+from identification._patches import shell_centres
+from jaxfem.elements import laminates, shell_mass, shell_stiffness
 
 
 def _own(model: Model, row: int) -> set[int]:
@@ -133,7 +134,7 @@ def total_mass(model: Model) -> float:
     for name in ("quads", "trias"):
         sh = getattr(model, name)
         if len(sh.ids):
-            lam = laminates(model.shell_sections, mat, sh.section, sh.theta, sh.zoffs)
+            lam = laminates(model.shell_sections, mat, sh.section, sh.theta, sh.zoffs, sh.parts, sh.nsm)
             me = jax.vmap(lambda x, lm, ratio: shell_mass(x, lm, ratio, True))(
                 jnp.asarray(xyz)[sh.nodes], lam, sh.t_ratio)
             # Lumped: the element mass on each translation of each grid; trace / 3 = its mass.
@@ -162,8 +163,69 @@ def _beam_stiffness_scale(model: Model, eids) -> tuple[float, float]:
 
 def joint_reference(model: Model, nodes, side_eids) -> dict[str, float]:
     """Starting values of a joint: rotations 10·E·I/L and translations 100·E·A/L of the
-    stiffest element of the released side (a joint slightly softer than rigid)."""
+    stiffest beam or rod of the released side (a joint slightly softer than rigid); with
+    shells only, the same multiples of their diagonal stiffness at the grids (E·A/L and
+    4·E·I/L for a beam: 100× and 2.5×)."""
     ea, ei = _beam_stiffness_scale(model, side_eids)
     if ei <= 0:
-        raise ValueError(f"joint at grid(s) {list(nodes)}: no beam or rod on the released side")
+        ea, four_ei = shell_stiffness_scale(model, side_eids, nodes)
+        ei = four_ei / 4.0
+    if ei <= 0:
+        raise ValueError(f"joint at grid(s) {list(nodes)}: no beam, rod or shell on the released side")
     return {"k_trans": 100.0 * ea, "k_rot": 10.0 * ei}
+
+
+def shell_size(model: Model) -> float:
+    """Typical shell element size (m): the median length of the shells' edges."""
+    _, _, corners = shell_centres(model)
+    if not len(corners):
+        return 0.0
+    xyz = np.asarray(model.xyz)
+    valid = corners >= 0
+    nxt = np.where(np.roll(valid, -1, axis=1), np.roll(corners, -1, axis=1), corners[:, :1])
+    edges = np.linalg.norm(xyz[np.maximum(corners, 0)] - xyz[np.maximum(nxt, 0)], axis=2)[valid]
+    return float(np.median(edges))
+
+
+def patch_elements(model: Model, node: int, radius: float) -> tuple[int, ...]:
+    """Shells whose centres lie within ``radius`` (m) of grid ``node``, and at least those
+    attached to it (a patch, :class:`~updating._effects.AbstractPatch`)."""
+    ids, centres, corners = shell_centres(model)
+    row = model.node_index([node])[0]
+    inside = np.linalg.norm(centres - np.asarray(model.xyz)[row], axis=1) <= radius * (1 + 1e-9)
+    return tuple(int(e) for e in ids[inside | (corners == row).any(axis=1)])
+
+
+def shell_stiffness_scale(model: Model, eids, nodes) -> tuple[float, float]:
+    """(largest translational, largest rotational) diagonal stiffness that the shells among
+    ``eids`` put on the grids ``nodes`` (N/m, N·m/rad; 0 without shells)."""
+    rows = set(model.node_index(list(nodes)).tolist())
+    kt, kr = [0.0], [0.0]
+    for name in ("quads", "trias"):
+        sh = getattr(model, name)
+        hit = np.isin(sh.ids, np.asarray(list(eids), np.int64))
+        if not hit.any():
+            continue
+        lam = laminates(model.shell_sections, model.materials, sh.section[hit], sh.theta[hit], sh.zoffs[hit],
+                        sh.parts[hit], sh.nsm[hit])
+        ke = jax.vmap(shell_stiffness, in_axes=(0, 0, 0, None))(jnp.asarray(model.xyz)[sh.nodes[hit]], lam,
+                                                                sh.t_ratio[hit], model.k6rot)
+        diag = np.asarray(jnp.diagonal(ke, axis1=1, axis2=2)).reshape(hit.sum(), -1, 6)
+        at = np.isin(sh.nodes[hit], list(rows))
+        kt.append(float(diag[at][:, :3].max(initial=0.0)))
+        kr.append(float(diag[at][:, 3:].max(initial=0.0)))
+    return max(kt), max(kr)
+
+
+def shell_area(model: Model, eids) -> float:
+    """Total area (m²) of the shells among ``eids`` (each quad as its two triangles)."""
+    ids, _, corners = shell_centres(model)
+    rows = corners[np.isin(ids, np.asarray(list(eids), np.int64))]
+    xyz = np.asarray(model.xyz)
+    area = 0.0
+    for a, b, c in ((0, 1, 2), (0, 2, 3)):
+        tri = rows[:, [a, b, c]]
+        ok = (tri >= 0).all(axis=1)
+        p = xyz[tri[ok]]
+        area += 0.5 * float(np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum())
+    return area

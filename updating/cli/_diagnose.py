@@ -9,7 +9,7 @@ import numpy as np
 import typer
 
 from ._common import (ModelArg, SolverOpt, TestArg, check_plots, check_solver, fail, frf_prediction, load_inputs,
-                      mode_labels, write_json)
+                      load_test, mode_labels, write_json)
 
 
 def _fmt(x, spec: str) -> str:
@@ -110,8 +110,9 @@ def _figures(rep: dict, diag, confirmation, model, test, report: Path) -> dict:
 
 
 def diagnosis(model, test, params, *, model_name: str, test_name: str, json_out: Path | None,
-              report: Path | None, frf_path: Path | None = None, options=None) -> dict:
-    """Diagnose, add the winning effect, update, print, write JSON and the HTML report."""
+              report: Path | None, frf_path: Path | None = None, options=None, reference: dict | None = None) -> dict:
+    """Diagnose, add the winning effect, update, print, write JSON and the HTML report
+    (``reference``: the reference state's file and per-mode change, when the test is a change)."""
     from .._diagnose import DiagnoseOptions, add_effect, diagnose
     from .._report import json_safe, write_report
 
@@ -120,6 +121,8 @@ def diagnosis(model, test, params, *, model_name: str, test_name: str, json_out:
 
     diag = diagnose(model, test, params, options=options or DiagnoseOptions(), progress=say)
     rep = dict(diag.to_json(), model=model_name, test=test_name)
+    if reference is not None:
+        rep["reference"] = reference
     _print_diagnosis(rep)
     confirmation = None
     if diag.best is not None:
@@ -156,6 +159,11 @@ def diagnose(
     noise_freq: Annotated[float, typer.Option("--noise-freq", help="expected frequency error, % (1σ)")] = 0.2,
     noise_shape: Annotated[float, typer.Option("--noise-shape", help="expected shape error per component, % (1σ)")] = 1.0,
     solver: SolverOpt = None,
+    reference_path: Annotated[Path | None, typer.Option(
+        "--reference", metavar="HEALTHY.uff", exists=True, dir_okay=False,
+        help="modes of a reference state (e.g. before the damage) at the same sensors: diagnose the change "
+             "between it and TEST, carried onto the model's modes (its own error cancels); state the noise "
+             "of a difference")] = None,
 ) -> None:
     """Where does the model fail, and which physical effect is missing? Localise the error,
     rank candidate effects by Bayesian evidence, test the most probable on held-out modes,
@@ -164,10 +172,36 @@ def diagnose(
 
     check_plots(report)
     model, test, _, params = load_inputs(model_path, test_path, params_path, solver)
+    change = None
+    if reference_path is not None:
+        test, change = _relative(model, test, reference_path, check_solver(solver) or "auto")
     if not (noise_freq > 0 and noise_shape > 0):
         fail("--noise-freq and --noise-shape must be positive (percent)")
     options = DiagnoseOptions(noise_freq=noise_freq / 100, noise_shape=noise_shape / 100,
                               eigensolver=check_solver(solver))
     diagnosis(model, test, params, model_name=model_path.name, test_name=test_path.name, json_out=json_out,
-              report=report, frf_path=frf_path, options=options)
+              report=report, frf_path=frf_path, options=options,
+              reference=None if change is None else {"file": reference_path.name, "modes": change})
+
+
+def _relative(model, test, reference_path: Path, solver: str):
+    """The change from the reference test to the test, on the model's modes
+    (:func:`updating.relative_to`); the per-mode change printed."""
+    from identification import observation_matrix
+
+    from .._reference import relative_to
+
+    reference = load_test(reference_path)
+    try:
+        observation_matrix(model, reference.sensors)
+        data, rows = relative_to(model, test, reference, solver=solver)
+    except ValueError as err:
+        fail(f"reference {reference_path}: {err}")
+    typer.echo(f"change from {reference_path.name}: {len(data.frequencies_hz)} of {len(rows)} reference modes "
+               "paired with the test and the model")
+    typer.echo(f"{'ref':>4} {'f_ref [Hz]':>11} {'f_test [Hz]':>12} {'change [%]':>11}")
+    for r in rows:
+        typer.echo(f"{r['reference_mode']:>4} {r['f_reference_hz']:>11.3f} {_fmt(r['f_test_hz'], '>12.3f')} "
+                   f"{_fmt(r['change_pct'], '>+11.3f')}")
+    return data, rows
 

@@ -1,0 +1,136 @@
+"""Effects on shells (patches: delamination, local membrane/bending stiffness, distributed
+mass), their masks for the shared-structure fits, shell supports as candidates, and test
+data relative to a reference state (updating.relative_to)."""
+
+import warnings
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxfem
+from benchmarks.shell_models import plate
+from identification import ModalData, Sensors
+from jaxfem.io import read_bdf_text
+from updating import Delamination, DistributedMass, Effect, PatchStiffness, parse_effect, relative_to
+from updating._effects import RADII, BoundarySpring
+from updating._simulation import simulate_test
+from updating._topology import shell_area, shell_size, total_mass
+
+LAMINATE = """MAT8,8,5.4e10,5.4e10,0.05,5.0e9,2.0e9,2.0e9,1460.0
+PCOMP,1,,,,,,,,
+,8,0.002,0.,,8,0.002,0.,"""
+
+
+@pytest.fixture(scope="module")
+def panel():
+    """A clamped 0.4 × 0.3 m CFRP plate, 10 × 8 CQUAD4 of 40 × 37.5 mm."""
+    return jaxfem.build_model(read_bdf_text(plate(0.4, 0.3, 10, 8, LAMINATE, bc="cfff")))
+
+
+def _grid_at(model, x, y):
+    xyz = np.asarray(model.xyz)
+    return int(model.node_ids[np.argmin(np.hypot(xyz[:, 0] - x, xyz[:, 1] - y))])
+
+
+def _kd(model):
+    K, M = jaxfem.assemble(model)
+    return np.asarray(K.todense()), np.asarray(M.todense())
+
+
+def test_patch_ladder_and_location(panel):
+    """Radii of the ladder hold 4, 12, ... shells about an interior grid; the
+    patch lists its elements and says where it is, in mm."""
+    h = shell_size(panel)
+    assert 0.0375 <= h <= 0.040  # the median edge of 40 × 37.5 mm elements
+    node = _grid_at(panel, 0.2, 0.15)
+    counts = [len(Delamination.at(panel, node, r * h).eids) for r in RADII]
+    assert counts[:2] == [4, 12] and counts == sorted(counts) and counts[-1] > counts[1]
+    d = Delamination.at(panel, node, 1.7 * h)
+    assert d.where() == f"12 shells within {1000 * 1.7 * h:.0f} mm of grid {node}"
+    assert d.to_json()["radius_m"] == pytest.approx(1.7 * h)
+    assert parse_effect(f"delamination:node={node};radius=0.06").elements(panel).tolist() == list(
+        Delamination.at(panel, node, 0.06).eids)
+    with pytest.raises(ValueError, match="radius must be > 0"):
+        Effect("delamination", nodes=(node,))
+    with pytest.raises(ValueError, match="membrane or bending"):
+        PatchStiffness(nodes=(node,), radius=0.05, part="shear")
+
+
+@pytest.mark.parametrize("effect, part", [(Delamination, 2), (PatchStiffness, 1)])
+def test_patch_part_apply_parameter_and_mask_agree(panel, effect, part):
+    """A factor on the patch's shear (bending) stiffness: applied, as the update's
+    parameter and as the diagnosis' mask, the same matrices; only the patch changes."""
+    node = _grid_at(panel, 0.16, 0.12)
+    ref = effect.at(panel, node, 0.06).at_reference(panel, [50.0])
+    assert ref.factor == 1.0
+    theta = np.log(0.2)
+    applied = ref.updated([theta]).apply(panel)
+    parts = np.asarray(applied.quads.parts)
+    inside = np.isin(panel.quads.ids, ref.eids)
+    np.testing.assert_allclose(parts[inside, part], 0.2)
+    np.testing.assert_allclose(np.delete(parts, part, axis=1), 1.0)
+    np.testing.assert_allclose(parts[~inside, part], 1.0)
+    (param,) = ref.parameters(panel, panel)
+    from updating import ParameterSet, parameterise
+
+    base, par = parameterise(panel, ParameterSet((param,)))
+    by_param = par.apply(base, jnp.array([theta]))
+    by_mask = ref.extension(panel, panel)(panel, jnp.array([theta]))
+    K0, _ = _kd(panel)
+    for other in (by_param, by_mask):
+        np.testing.assert_allclose(_kd(other)[0], _kd(applied)[0], atol=1e-9 * np.abs(K0).max())
+    f0, f1 = (np.asarray(jaxfem.frequencies_hz(jaxfem.modes(m, 6)[0])) for m in (panel, applied))
+    assert np.all(f1 < f0) and np.max(1 - f1 / f0) > 1e-4  # softer where the patch works
+
+
+def test_distributed_mass(panel):
+    """NSM over a patch: the reference carries 1 % of the total mass; applied and as a mask
+    (woken at e^θ) the same mass matrix; the mass added is NSM × area."""
+    node = _grid_at(panel, 0.2, 0.15)
+    ref = DistributedMass.at(panel, node, 0.08).at_reference(panel, [50.0])
+    area = shell_area(panel, ref.eids)
+    assert ref.nsm * area == pytest.approx(0.01 * total_mass(panel), rel=1e-9)
+    heavier = ref.updated([np.log(3.0)])
+    assert total_mass(heavier.apply(panel)) - total_mass(panel) == pytest.approx(heavier.mass(panel), rel=1e-6)
+    _, M_applied = _kd(heavier.apply(panel))
+    _, M_mask = _kd(ref.extension(panel, panel)(panel, jnp.array([np.log(3.0)])))
+    np.testing.assert_allclose(M_mask, M_applied, atol=1e-12 * np.abs(M_applied).max())
+    assert "kg/m²" in heavier.advice(0.1)
+
+
+def test_support_of_a_clamped_shell_edge(panel):
+    """A clamped shell grid is a support candidate whose reference stiffness comes from the
+    shells' own diagonal stiffness there (no beam needed)."""
+    supports = BoundarySpring.candidates(panel)
+    assert supports
+    ref = supports[0].at_reference(panel, [50.0])
+    assert ref.k_trans > 0 and ref.k_rot > 0 and ref.k_trans > 100 * ref.k_rot
+
+
+def test_relative_to_carries_the_change_onto_the_model(panel):
+    """A model 3 % too stiff against a 'healthy' truth: relative to the healthy test, the
+    damaged test becomes the model's own modes times the measured change; the unchanged
+    state gives back exactly the model's modes."""
+    grids = [int(g) for g, x in zip(panel.node_ids, np.asarray(panel.xyz)) if x[0] > 0]
+    sensors = Sensors.from_components(grids, np.full(len(grids), 3))
+    healthy = jaxfem.correct(panel, [panel.element_ids().tolist()], jnp.array([-0.03]))
+    node = _grid_at(panel, 0.2, 0.15)
+    damaged = DistributedMass.at(healthy, node, 0.06).at_reference(healthy, [50.0]).apply(healthy)
+    ref_test, dmg_test = simulate_test(healthy, sensors, 8), simulate_test(damaged, sensors, 8)
+    model_test = simulate_test(panel, sensors, 8)
+    same, _ = relative_to(panel, ref_test, ref_test)
+    np.testing.assert_allclose(same.frequencies_hz, model_test.frequencies_hz, rtol=1e-12)
+    np.testing.assert_allclose(np.abs(same.shapes), np.abs(model_test.shapes), atol=1e-9)
+    data, rows = relative_to(panel, dmg_test, ref_test)
+    change = dmg_test.frequencies_hz / ref_test.frequencies_hz
+    np.testing.assert_allclose(data.frequencies_hz / model_test.frequencies_hz, change, rtol=1e-12)
+    assert [r["change_pct"] for r in rows] == pytest.approx(list(100 * (change - 1)))
+    assert min(change) < 0.999  # the mass is seen
+    with pytest.raises(ValueError, match="same sensors"):
+        relative_to(panel, dmg_test, ModalData(ref_test.frequencies_hz, ref_test.shapes[:-1],
+                                               Sensors.from_components(grids[:-1], np.full(len(grids) - 1, 3))))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        relative_to(panel, ModalData(dmg_test.frequencies_hz[:6], dmg_test.shapes[:, :6], sensors), ref_test)
+    assert any("reference modes [7, 8]" in str(w.message) for w in caught)
