@@ -9,7 +9,7 @@ and a test (damaged) is applied to the model's own modes,
 
     f = f_a · f_test / f_ref,      φ = C φ_a + s (φ_test − φ_ref),
 
-(s: the modal scale factor of φ_ref onto C φ_a, eq. 4.2), so that the model without the
+(s: the modal scale factor of φ_ref onto C φ_a), so that the model without the
 effect matches the data up to the change alone: its own error cancels to first order and
 a diagnosis explains the change. The noise of the result is that of a difference (√2 ×
 the noise of one test, when the two are measured alike).
@@ -60,7 +60,7 @@ def relative_to(model: Model, test: ModalData, reference: ModalData, *, n_modes:
         if t is None:
             continue
         a, ref, new = shapes_a[:, m], phi_r[:, r], phi_t[:, t]
-        s = float(ref @ a) / float(ref @ ref)  # eq. 4.2
+        s = float(ref @ a) / float(ref @ ref)  # modal scale factor
         new = new * np.sign(float(new @ ref))
         freqs.append(f_a[m] * f_t[t] / f_r[r])
         shapes.append(a + s * (new - ref))
