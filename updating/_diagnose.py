@@ -222,7 +222,7 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     # -- the place refined: an added mass or spring moves to a neighbouring grid while that fits better
     for c0, c1 in _refine_places(fits, problem, aug, cands, short, base, theta_b):
         say(f"  {c1.reference.kind} moved from grid {c0.reference.nodes[0]} to {c1.reference.nodes[0]} ({elapsed()})")
-    for c0, c1 in _refine_patches(fits, problem, model, aug, short, base, theta_b, f_e, say):
+    for c0, c1 in _refine_patches(fits, problem, model, aug, short, base, theta_b, f_e):
         say(f"  {c1.reference.kind} moved from {c0.reference.where()} to {c1.reference.where()} ({elapsed()})")
 
     # -- evidence; the most probable candidates cross-validated
@@ -278,6 +278,18 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
         (np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model)))
 
 
+def _climb(best: Candidate, fitted_neighbours) -> list[tuple[Candidate, Candidate]]:
+    """Move from ``best`` to its best-fitting neighbour while that fits better;
+    ``fitted_neighbours(c)``: the neighbours of ``c`` to compare, fitted. The moves made."""
+    moves = []
+    while True:
+        step = min(fitted_neighbours(best), key=lambda c: c.result["cost"], default=best)
+        if step.result["cost"] >= best.result["cost"]:
+            return moves
+        moves.append((best, step))
+        best = step
+
+
 def _refine_places(fits: Fits, problem, aug: Model, cands: list[Candidate], short: list[Candidate], base: dict,
                    theta_b: np.ndarray) -> list[tuple[Candidate, Candidate]]:
     """Hill-climb over the grids: the best fitted added mass (spring to ground) is fitted
@@ -286,27 +298,28 @@ def _refine_places(fits: Fits, problem, aug: Model, cands: list[Candidate], shor
     returns the moves made."""
     at_grid = {(c.reference.kind, c.reference.nodes): c for c in cands if c.family == "mask"
                and c.reference.kind in ("added_mass", "boundary_spring") and not c.ext.split}
+
+    def fitted_neighbours(best: Candidate) -> list[Candidate]:
+        kind = best.reference.kind
+        new = [at_grid[kind, (g,)] for g in neighbours(aug, best.reference.nodes[0])
+               if (kind, (g,)) in at_grid and at_grid[kind, (g,)] not in short]
+        for c in new:
+            c.theta0 = scan_start(fits, problem, c.ext, theta_b, c.scan)
+            c.result = fit(fits, problem, c.ext, np.concatenate([theta_b, c.theta0]))
+            short.append(c)
+        return new
+
     moves = []
     for kind in ("added_mass", "boundary_spring"):
         tried = [c for c in short if c.reference.kind == kind and (kind, c.reference.nodes) in at_grid]
         best = min(tried, key=lambda c: c.result["cost"], default=None)
-        while best is not None and best.result["cost"] < base["cost"]:
-            new = [at_grid[kind, (g,)] for g in neighbours(aug, best.reference.nodes[0])
-                   if (kind, (g,)) in at_grid and at_grid[kind, (g,)] not in short]
-            for c in new:
-                c.theta0 = scan_start(fits, problem, c.ext, theta_b, c.scan)
-                c.result = fit(fits, problem, c.ext, np.concatenate([theta_b, c.theta0]))
-                short.append(c)
-            step = min(new, key=lambda c: c.result["cost"], default=best)
-            if step.result["cost"] >= best.result["cost"]:
-                break
-            moves.append((best, step))
-            best = step
+        if best is not None and best.result["cost"] < base["cost"]:
+            moves += _climb(best, fitted_neighbours)
     return moves
 
 
 def _refine_patches(fits: Fits, problem, model: Model, aug: Model, short: list[Candidate], base: dict,
-                    theta_b: np.ndarray, f_e, say) -> list[tuple[Candidate, Candidate]]:
+                    theta_b: np.ndarray, f_e) -> list[tuple[Candidate, Candidate]]:
     """Hill-climb of the two best patch kinds (kind and part) that fit better than the
     baseline: the best fitted patch is fitted about each neighbouring shell grid and with
     the next radius up and down the ladder, and moves while one fits better (centre
@@ -316,30 +329,27 @@ def _refine_patches(fits: Fits, problem, model: Model, aug: Model, short: list[C
 
     mass = total_mass(model)
     fitted = {key(c.reference): c for c in short if isinstance(c.reference, AbstractPatch)}
+
+    def fitted_neighbours(best: Candidate) -> list[Candidate]:
+        out = []
+        for patch in patch_neighbours(model, best, f_e):
+            if key(patch) not in fitted:
+                c = patch_candidate(patch, model, None, f_e, mass)
+                with_masks([c], aug)
+                c.theta0 = best.result["theta"][len(theta_b):]
+                c.result = fit(fits, problem, c.ext, np.concatenate([theta_b, c.theta0]))
+                fitted[key(patch)] = c
+                short.append(c)
+            out.append(fitted[key(patch)])
+        return out
+
     best_of: dict = {}
     for c in fitted.values():
         k = key(c.reference)[:2]
         if c.result["cost"] < base["cost"] and (k not in best_of or c.result["cost"] < best_of[k].result["cost"]):
             best_of[k] = c
-    moves = []
-    for best in sorted(best_of.values(), key=lambda c: c.result["cost"])[:2]:
-        while True:
-            new = []
-            for patch in patch_neighbours(model, best, f_e):
-                if key(patch) not in fitted:
-                    c = patch_candidate(patch, model, None, f_e, mass)
-                    with_masks([c], aug)
-                    c.theta0 = best.result["theta"][len(theta_b):]
-                    c.result = fit(fits, problem, c.ext, np.concatenate([theta_b, c.theta0]))
-                    fitted[key(patch)] = c
-                    short.append(c)
-                new.append(fitted[key(patch)])
-            step = min(new, key=lambda c: c.result["cost"], default=best)
-            if step.result["cost"] >= best.result["cost"]:
-                break
-            moves.append((best, step))
-            best = step
-    return moves
+    return [m for best in sorted(best_of.values(), key=lambda c: c.result["cost"])[:2]
+            for m in _climb(best, fitted_neighbours)]
 
 
 # ---------------------------------------------------------------------------------------
