@@ -11,7 +11,10 @@
    support in it — all on one model (:func:`~updating._candidates.augment`), so that all
    fits share one compiled solver. They are screened by the linearised residual
    reduction ρ (joints and supports by a coarse scan of their stiffness); per kind those
-   within ``within`` of the kind's best are fitted (Optimistix Levenberg–Marquardt).
+   within ``within`` of the kind's best are fitted (Optimistix Levenberg–Marquardt). On
+   shells, patches about the region's shell grids (a delamination, a local membrane or
+   bending stiffness, distributed mass; radii from a ladder), their centre and radius
+   then refined by hill-climbing.
 4. **Ranking by evidence** (:mod:`updating._evidence`): the Laplace approximation of each
    candidate's marginal likelihood under its kind's prior, posterior probabilities over
    the candidates and the baseline; the most probable ones are cross-validated over the
