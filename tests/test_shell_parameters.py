@@ -260,11 +260,22 @@ def test_shear_rigid_targets_are_refused(plate):
 
 
 def test_shell_kinds_need_pids():
-    for kind in ("membrane", "t", "theta", "E1", "G2Z", "nsm"):
+    """Section and material kinds need pids; a shell part factor or NSM may also name shell
+    eids (the elements' own values, a patch effect), refused on elements that are not shells."""
+    for kind in ("t", "theta", "E1", "G2Z"):
         with pytest.raises(ValueError, match="needs pids"):
             Parameter("x", kind, eids=(1,))
+    for kind in ("membrane", "bending", "transverse_shear", "nsm"):
+        assert Parameter("x", kind, eids=(1,)).eids == (1,)
     parsed = ParameterSet.from_dict({"parameter": [{"name": "ply", "kind": "theta", "pids": [2]}]}, "t.toml")
     assert parsed.parameters[0].kind == "theta"
+
+
+def test_shell_eid_kinds_refuse_other_elements(strip):
+    with pytest.raises(ValueError, match=r"eids \[100\] are not shells"):
+        parameterise(strip, ParameterSet((Parameter("x", "transverse_shear", eids=(100,)),)))
+    with pytest.raises(ValueError, match="own NSM is 0"):
+        parameterise(strip, ParameterSet((Parameter("x", "nsm", eids=tuple(strip.quads.ids[:2].tolist())),)))
 
 
 def test_total_mass_includes_shells(strip):
