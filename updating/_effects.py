@@ -411,7 +411,7 @@ class DistributedMass(AbstractPatch):
 
     def plausibility(self, total_mass: float, reference: AbstractEffect | None = None) -> list[str]:
         if reference is not None and self.nsm > 20.0 * reference.nsm:
-            return [f"{self.nsm:.3g} kg/m² is {self.nsm / reference.nsm / 100:.0f} % of the total mass over the patch"]
+            return [f"{self.nsm:.3g} kg/m² over the patch is {self.nsm / reference.nsm:.0f} % of the total mass"]
         return []
 
     def advice(self, sd) -> str:
