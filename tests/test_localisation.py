@@ -1,14 +1,21 @@
-"""Error localisation: both indicators point at the property group that carries the error."""
+"""Error localisation: both indicators point at the property group that carries the error;
+the sparse residual-force expansion against the dense least-squares reference, and on a
+2,520-DoF shell panel, where it finds a delamination."""
+
+import time
 
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 import jaxfem
 from benchmarks.frames import frame_bdf
 from identification import ModalData, Sensors, observation_matrix
 from jaxfem.io import read_bdf_text
 from updating import Options, Parameter, ParameterSet, build_problem, parameterise
-from updating._localisation import group_scores, parameter_reduction, residual_forces
+import updating._localisation as localisation
+from benchmarks import cfrp_panel
+from updating._localisation import _element_dofs, group_scores, parameter_reduction, residual_forces
 
 
 def test_both_indicators_find_the_erroneous_group():
@@ -31,3 +38,95 @@ def test_both_indicators_find_the_erroneous_group():
     scores = group_scores(residual_forces(model, np.asarray(lam), np.asarray(C @ phi), C)[0], model)
     assert next(iter(scores)) == 4  # highest residual-force energy in property 4
     assert all(v < 0.8 for p, v in scores.items() if p != 4)
+
+
+@pytest.fixture(scope="module")
+def frame():
+    """(model, λ_e, φ_e, C): the 168-DoF frame, "measured" with property 4 20 % softer."""
+    model = jaxfem.build_model(read_bdf_text(frame_bdf(3, 3, 3, n_groups=6)))
+    candidates = tuple(Parameter(f"pid{p}", "stiffness", pids=(p,)) for p in range(1, 7))
+    base, par = parameterise(model, candidates)
+    truth = par.apply(base, jnp.log1p(jnp.asarray([0.0, 0.0, 0.0, -0.2, 0.0, 0.0])))
+    lam, phi = jaxfem.eigh(*jaxfem.assemble(truth), 8)
+    free = model.node_ids[(model.node_ids > 9) & (model.node_ids < 900000)]
+    C, _ = observation_matrix(model, Sensors.from_components(np.repeat(free, 3), np.tile([1, 2, 3], len(free))))
+    return model, np.asarray(lam), np.asarray(C @ phi), C
+
+
+def test_residual_forces_sparse_equals_dense_least_squares(frame):
+    """Reference: the dense minimum-norm least-squares solution of the KKT system
+    [[AᵀA, Cᵀ], [C, 0]] per mode, A = W (K − λ_e M) (the former implementation; on this
+    frame A is well conditioned, cond ≤ 2·10⁵)."""
+    model, lam, phi_e, C = frame
+    elements, grids = residual_forces(model, lam, phi_e, C)
+
+    K, M = jaxfem.assemble(model)
+    kd, md = np.asarray(K.todense()), np.asarray(M.todense())
+    n, ns = kd.shape[0], C.shape[0]
+    rotation = model.dofs.labels[:, 1] > 3
+    diag = np.abs(np.diag(kd))
+    w = np.where(rotation, 1.0 / np.median(diag[rotation]), 1.0 / np.median(diag[~rotation]))
+    f2 = np.zeros(n + 1)
+    for lam_j, shape in zip(lam, phi_e.T):
+        a = w[:, None] * (kd - lam_j * md)
+        kkt = np.block([[a.T @ a, C.T], [C, np.zeros((ns, ns))]])
+        x = np.linalg.lstsq(kkt, np.concatenate([np.zeros(n), shape]), rcond=None)[0][:n]
+        f2[:n] += (a @ x) ** 2
+    ref_elements = {}
+    for block, idx in _element_dofs(model):
+        used = idx < n
+        ref_elements.update(zip(block.ids.tolist(), np.sum(f2[idx] * used, axis=1) / used.sum(axis=1)))
+    ref_grids = {}
+    for (grid, _), v in zip(model.dofs.labels, f2[:n]):
+        ref_grids[int(grid)] = ref_grids.get(int(grid), 0.0) + v
+
+    for got, ref in ((elements, ref_elements), (grids, ref_grids)):
+        assert sorted(got) == sorted(ref)
+        keys = sorted(ref)
+        ref_values = np.array([ref[k] for k in keys])
+        np.testing.assert_allclose([got[k] for k in keys], ref_values / ref_values.max(), rtol=1e-6)
+
+
+def test_residual_forces_singular_expansion(frame, monkeypatch):
+    """A sensor read twice makes the expansion system singular: under 3,000 DoFs the dense
+    least-squares fallback gives the scores without the duplicate; otherwise a ValueError
+    names the mode."""
+    model, lam, phi_e, C = frame
+    twice_c, twice_phi = np.vstack([C, C[:1]]), np.vstack([phi_e, phi_e[:1]])
+    once = residual_forces(model, lam, phi_e, C)
+    twice = residual_forces(model, lam, twice_phi, twice_c)
+    for a, b in zip(once, twice):
+        np.testing.assert_allclose([b[k] for k in sorted(a)], [a[k] for k in sorted(a)], rtol=1e-6)
+    monkeypatch.setattr(localisation, "DENSE_FALLBACK_BELOW", 0)
+    with pytest.raises(ValueError, match="measured mode 1 .*singular"):
+        residual_forces(model, lam, twice_phi, twice_c)
+
+
+def test_residual_forces_locate_panel_delamination():
+    """The 2,520-DoF CFRP panel (25 mm CQUAD4) "measured" with a delamination of radius
+    30 mm at (0.15, 0.20) (G1Z, G2Z − 90 %, 4 elements), 8 modes read out of plane at
+    90 grids of the plate: the expansion takes about a second (the dense least squares
+    took minutes and, at cond(A) ≈ 10¹³, pointed at the free corners), and the top four
+    elements are the delaminated ones."""
+    model = cfrp_panel.build()
+    damaged = cfrp_panel.build(damage=(0.15, 0.2, 0.03))
+    lam, phi = jaxfem.modes(damaged, 8)
+    xyz, ids = np.asarray(model.xyz), np.asarray(model.node_ids)
+    plate = (np.abs(xyz[:, 2]) < 1e-9) & (xyz[:, 0] > 1e-9)
+    xs, ys = np.unique(xyz[plate, 0].round(6)), np.unique(xyz[plate, 1].round(6))
+    grids = ids[plate & np.isin(xyz[:, 0].round(6), xs[1::2]) & np.isin(xyz[:, 1].round(6), ys[::2])]
+    assert len(grids) == 90
+    sensors = Sensors.from_components(grids, np.full(len(grids), 3))
+    C, _ = observation_matrix(model, sensors)
+    np.testing.assert_array_equal(C, observation_matrix(damaged, sensors)[0])  # same mesh, same DoFs
+
+    start = time.perf_counter()
+    elements, _ = residual_forces(model, np.asarray(lam), C @ np.asarray(phi), C)
+    assert time.perf_counter() - start < 10.0  # measured 0.7 s (2 cores)
+
+    quads = model.quads
+    centre = dict(zip(quads.ids.tolist(), xyz[np.asarray(quads.nodes)].mean(axis=1)))
+    delaminated = {int(e) for e, p, q in zip(quads.ids, quads.pids, damaged.quads.pids) if p != q}
+    ranked = sorted(elements, key=elements.get, reverse=True)
+    assert np.hypot(*(centre[ranked[0]][:2] - [0.15, 0.2])) < 0.06
+    assert set(ranked[:4]) == delaminated

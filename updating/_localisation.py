@@ -15,9 +15,12 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
+import scipy.sparse
+import scipy.sparse.linalg
 
 import jaxfem
 from jaxfem import STIFFNESS_BLOCKS, STRUCTURAL_BLOCKS, Model
+from jaxfem._assembly import _sparse_block
 
 from ._compiled import Compiled
 from ._residuals import Problem, residuals
@@ -78,21 +81,26 @@ def residual_forces(model: Model, lam_e, phi_e, C) -> tuple[dict[int, float], di
     **Arguments:** the model; measured eigenvalues λ_e (rad/s)² (m,), real shapes at the
     sensors ``phi_e`` (n_s, m), the observation matrix ``C`` (n_s, n_dof).
     **Returns:** ({element id: indicator}, {grid id: Σ f² over its solved DoFs}).
+
+    Sparse throughout (one sparse LU per mode, see :func:`_expanded`): no n × n array.
     """
     K, M = jaxfem.assemble(model)
-    kd, md = np.asarray(K.todense()), np.asarray(M.todense())
-    C = np.asarray(C)
+    n = model.n_dof
+    every = np.arange(n)
+    ks, ms = _sparse_block(K, every).tocsr(), _sparse_block(M, every).tocsr()
+    C = np.asarray(C, dtype=np.float64)
     rotation = model.dofs.labels[:, 1] > 3
-    diag = np.abs(np.diag(kd))
+    diag = np.abs(ks.diagonal())
     w = np.where(rotation, 1.0 / np.median(diag[rotation]) if rotation.any() else 1.0,
                  1.0 / np.median(diag[~rotation]) if (~rotation).any() else 1.0)
-    n, ns = kd.shape[0], C.shape[0]
+    cs = scipy.sparse.csr_matrix(C)
     per_dof = np.zeros(n + 1)  # last entry: padding index
-    for lam, shape in zip(np.asarray(lam_e), np.asarray(phi_e).T):
-        a = w[:, None] * (kd - lam * md)
-        kkt = np.block([[a.T @ a, C.T], [C, np.zeros((ns, ns))]])
-        sol = np.linalg.lstsq(kkt, np.concatenate([np.zeros(n), shape]), rcond=None)[0]
-        per_dof[:n] += (a @ sol[:n]) ** 2
+    order = None
+    shapes = np.asarray(phi_e, dtype=np.float64).T
+    for mode, (lam, shape) in enumerate(zip(np.asarray(lam_e, dtype=np.float64), shapes)):
+        a = (scipy.sparse.diags(w) @ (ks - lam * ms)).tocsc()
+        order = _pair_order(a, cs) if order is None else order
+        per_dof[:n] += (a @ _expanded(a, cs, shape, mode, order)) ** 2
     scores: dict[int, float] = {}
     for block, idx in _element_dofs(model):
         used = idx < model.n_dof
@@ -103,6 +111,90 @@ def residual_forces(model: Model, lam_e, phi_e, C) -> tuple[dict[int, float], di
         nodes[int(node)] = nodes.get(int(node), 0.0) + float(f2)
     return _unit(scores), _unit(nodes)
 
+
+DENSE_FALLBACK_BELOW = 3000
+"""DoF count below which a mode whose expansion system is singular is solved by the dense
+least-squares fallback instead of raising a ``ValueError``."""
+
+
+def _expanded(a, cs, shape: np.ndarray, mode: int, order: np.ndarray) -> np.ndarray:
+    """φ̃ minimising ‖a φ̃‖ subject to ``cs φ̃ = shape`` (a: sparse n × n, cs: sparse n_s × n).
+
+    The optimality (KKT) conditions in augmented form, with the residual force
+    ``r = a φ̃`` as an unknown, ``[[−I, a, 0], [aᵀ, 0, csᵀ], [0, cs, 0]] [r; φ̃; μ] = [0; 0; shape]``
+    (eliminating r gives the normal form ``[[aᵀa, csᵀ], [cs, 0]] [φ̃; μ] = [0; shape]``):
+    its condition number is that of a, about 10¹³ on a shell where λ_e lies next to an
+    eigenvalue of the model, not the square, at which least squares on the normal form
+    misses the minimum by orders of magnitude. One sparse LU (SuperLU) in the fill-reducing
+    ``order`` of :func:`_pair_order` with diagonal pivots, then iterative refinement; when
+    that LU fails or its solution does not satisfy the system, one with partial pivoting.
+    When the system is singular (C of deficient row rank, e.g. a sensor read twice, or
+    [a; C] of deficient column rank): the minimum-norm least-squares solution of the dense normal form for models
+    under :data:`DENSE_FALLBACK_BELOW` DoFs, else a ``ValueError``.
+    """
+    n, ns = a.shape[1], cs.shape[0]
+    aug = scipy.sparse.bmat([[-scipy.sparse.identity(n), a, None], [a.T, None, cs.T], [None, cs, None]],
+                            format="csr")
+    rhs = np.concatenate([np.zeros(2 * n), shape])
+    permuted = aug[order][:, order].tocsc()
+    sol, why = _lu_solve(permuted, rhs[order], permc_spec="NATURAL", diag_pivot_thresh=0.0,
+                         options={"SymmetricMode": True})
+    if sol is not None:
+        return sol[np.argsort(order)][n:2 * n]
+    sol, why = _lu_solve(aug.tocsc(), rhs)
+    if sol is not None:
+        return sol[n:2 * n]
+    if n < DENSE_FALLBACK_BELOW:
+        ad = a.toarray()
+        kkt = np.block([[ad.T @ ad, cs.T.toarray()], [cs.toarray(), np.zeros((ns, ns))]])
+        return np.linalg.lstsq(kkt, np.concatenate([np.zeros(n), shape]), rcond=None)[0][:n]
+    raise ValueError(
+        f"residual forces, measured mode {mode + 1} (column {mode} of phi_e): the expansion system "
+        f"is singular ({why}). The sensors must read independent DoFs and, with the model, "
+        f"determine the expanded shape ({n} DoFs, {ns} sensors; no dense fallback at "
+        f"{DENSE_FALLBACK_BELOW} DoFs or more)."
+    )
+
+
+def _lu_solve(mat, rhs: np.ndarray, **options) -> tuple[np.ndarray | None, str]:
+    """``mat⁻¹ rhs`` by SuperLU and up to three refinement steps, or (None, why) when the
+    factorisation fails or the solution is not finite or does not satisfy the system."""
+    try:
+        lu = scipy.sparse.linalg.splu(mat, **options)
+    except RuntimeError as err:  # "Factor is exactly singular"
+        return None, f"SuperLU: {err}"
+    sol = lu.solve(rhs)
+    scale = scipy.sparse.linalg.norm(mat, np.inf)
+    for _ in range(4):
+        if not np.all(np.isfinite(sol)):
+            return None, "non-finite solution"
+        res = rhs - mat @ sol
+        if np.linalg.norm(res, np.inf) <= 1e-12 * (scale * np.linalg.norm(sol, np.inf) + np.linalg.norm(rhs, np.inf)):
+            return sol, ""
+        sol = sol + lu.solve(res)
+    if np.all(np.isfinite(sol)) and np.linalg.norm(rhs - mat @ sol, np.inf) <= 1e-8 * (
+            scale * np.linalg.norm(sol, np.inf) + np.linalg.norm(rhs, np.inf)):
+        return sol, ""
+    return None, "the LU solution does not satisfy the system"
+
+
+def _pair_order(a, cs) -> np.ndarray:
+    """Order of the unknowns [r; φ̃; μ] of :func:`_expanded` for an LU with diagonal pivots:
+    DoF k as the pair (r_k, φ̃_k), the pairs in the minimum-degree order of the graph of
+    a + aᵀ + csᵀcs (SuperLU's MMD, read off the factorisation of a diagonally dominant
+    matrix of that pattern), each multiplier μ_j after the last DoF that sensor j reads.
+    Pivoting on r_k (−1), then φ̃_k (the Schur complement aᵀa is positive definite), then
+    μ (negative definite) needs no row interchanges; fill as that of a, not of aᵀa."""
+    n, ns = a.shape[1], cs.shape[0]
+    pattern = (abs(a) + abs(a).T + abs(cs.T @ cs)).tocsc()
+    pattern.data[:] = 1.0
+    proxy = (pattern + scipy.sparse.diags(np.full(n, float(n)))).tocsc()
+    pos = scipy.sparse.linalg.splu(proxy, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                                   options={"SymmetricMode": True}).perm_c
+    csr = cs.tocsr()
+    last = np.array([pos[csr.indices[csr.indptr[j]:csr.indptr[j + 1]]].max(initial=-1) for j in range(ns)])
+    key = np.concatenate([2.0 * pos, 2.0 * pos + 1, 2.0 * last + 1.5])
+    return np.argsort(key, kind="stable")
 
 def _unit(scores: dict) -> dict:
     top = max(scores.values(), default=0.0)
