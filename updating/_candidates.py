@@ -61,6 +61,7 @@ class Candidate:
     prior_mean: float | np.ndarray = 0.0
     result: dict = field(default_factory=dict)
     effect: AbstractEffect | None = None
+    solver: object = None  # its reduced eigensolver (updating._reduced), made when first fitted
 
     def __post_init__(self):
         if self.effect is None:
@@ -167,7 +168,7 @@ STIFF = 100.0  # a released rigid connection or support is held this many times 
 def localised_grids(model: Model, screen: Screen, node_scores: dict[int, float], n: int,
                     fraction: float) -> list[int]:
     """The localised region: the grids of the property groups (or halves) whose stiffness
-    or mass screens at least ``fraction`` of the best (at most three; a group's grids best
+    or mass screens at least ``fraction`` of the best (at most three; their grids best
     scoring first), then the grids scoring at least ``fraction`` of the best; those that
     carry structural elements and no SPC, at most ``n``. (Grid scores alone favour grids
     that move much, such as tips.)"""
@@ -177,8 +178,8 @@ def localised_grids(model: Model, screen: Screen, node_scores: dict[int, float],
             ids = effect.elements(model)
             groups.append((float(reduction(screen.r, screen.column(effect.scales, ids), screen.J_b, joint=True)), ids))
     top_group = max((g[0] for g in groups), default=0.0)
-    grids = [g for rho, ids in sorted(groups, key=lambda g: -g[0])[:3] if rho >= fraction * top_group
-             for g in sorted(element_grids(model, ids), key=lambda k: -node_scores.get(k, 0.0))]
+    grids = sorted({g for rho, ids in sorted(groups, key=lambda g: -g[0])[:3] if rho >= fraction * top_group
+                    for g in element_grids(model, ids)}, key=lambda k: (-node_scores.get(k, 0.0), k))
     top = max(node_scores.values(), default=0.0)
     grids += sorted((k for k in node_scores if node_scores[k] >= fraction * top), key=lambda k: -node_scores[k])
     return [k for k in dict.fromkeys(grids) if elements_at(model, k) and not constrained_components(model, k)][:n]

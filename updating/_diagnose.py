@@ -3,9 +3,11 @@
 1. **Baseline**: the model, updated with the engineer's parameters if any (thesis §3.2).
 2. **Localisation** by two independent methods: (a) residual forces of the measured
    modes expanded to the model (Friswell & Mottershead 1995, §8,
-   :func:`residual_forces`), which define the localised region, (b) sensitivity — the
-   share ρ of the residual that one Gauss–Newton step in a single element's (group's)
-   stiffness or mass removes (ibid. §7).
+   :func:`residual_forces`), (b) sensitivity — the share ρ of the residual that one
+   Gauss–Newton step in a single element's (group's) stiffness or mass removes (ibid.
+   §7). Together they define the localised region; the residual forces only where the
+   shapes differ beyond noise (χ² per row ≥ ``SHAPE_SIGNAL``), since they are expanded
+   from the shapes alone.
 3. **Candidates** of every kind (:mod:`updating._effects`): group factors and laws, an
    added mass and springs to ground at *every* grid of the region, and every joint or
    support in it — all on one model (:func:`~updating._candidates.augment`), so that all
@@ -63,16 +65,32 @@ from ._candidates import (
 )
 from ._correlation import comac, pair_modes
 from ._effects import KINDS, AbstractEffect, AbstractPatch
+from ._eigensolvers import AbstractEigensolver, Direct
 from ._engine import Settings
-from ._evidence import Fits, combine, cross_validate, evidence, fit, fold_masks, scan_costs, scan_start, verdict
+from ._evidence import (
+    Fits,
+    combine,
+    cross_validate,
+    evidence,
+    fit,
+    fold_masks,
+    scan_costs,
+    scan_start,
+    verdict,
+    with_extension,
+)
 from ._extension import extension
 from ._localisation import group_scores, residual_forces
 from ._parameters import Options, Parameter, ParameterSet
+from ._reduced import Bases
 from ._report import json_number, rms_pct
-from ._residuals import evaluate
+from ._residuals import evaluate, rows
 from ._result import Iteration, UpdateResult
 from ._solve import build_problem, update
 from ._topology import total_mass
+
+
+SHAPE_SIGNAL = 2.0  # shape χ² per row at the nominal model below which residual forces do not define the region
 
 
 @dataclass(frozen=True)
@@ -90,6 +108,9 @@ class DiagnoseOptions:
     Levenberg–Marquardt loop (:mod:`updating._engine`), converged when no factor changes
     by more than ``tolerance`` relative (|Δ ln factor|), at most ``max_steps`` steps.
     ``eigensolver``: as the updating option (``auto``: the parameters' own).
+    ``reduce_above``: on a model of at least this many DoFs, the candidates are screened,
+    fitted and cross-validated on reduced models (:mod:`updating._reduced`), and the most
+    probable ones fitted again on the full model, whose fit is the one reported.
     """
 
     noise_freq: float = 0.002
@@ -106,6 +127,7 @@ class DiagnoseOptions:
     max_steps: int = 20
     tolerance: float = 1e-3
     kinds: tuple[str, ...] = KINDS
+    reduce_above: int = 2000
 
     @property
     def settings(self) -> Settings:
@@ -166,7 +188,12 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     elem_b, node_b = residual_forces(model, np.asarray(nominal_problem.lam_e), np.asarray(nominal_problem.phi_e), C)
     say(f"localising the error (sensitivity of every element at the nominal model, {elapsed()})")
     nominal_screen = Screen.at(nominal_problem, np.zeros(n_b), model, params, f_e, kinds=("k", "m"))
-    node_nominal = combine(node_max(model, nominal_screen.element_reduction("k")), node_b)
+    eps = rows(jnp.zeros(n_b), nominal_problem, evaluate(jnp.zeros(n_b), nominal_problem))["eigenvector"]
+    chi2_shape = float(jnp.sum(eps ** 2)) / sigma2 / (ne * ns)
+    if chi2_shape < SHAPE_SIGNAL:  # the expanded shapes are noise: their residual forces point nowhere
+        say(f"residual forces left out of the region: the shapes fit within noise (χ² per row {chi2_shape:.2f})")
+    node_nominal = combine(node_max(model, nominal_screen.element_reduction("k")),
+                           node_b if chi2_shape >= SHAPE_SIGNAL else {})
     nodes = localised_grids(model, nominal_screen, node_nominal, options.max_nodes, options.region)
     structures = region_structures(model, nodes, node_nominal, options.kinds, options.max_structural)
     mass = total_mass(model)
@@ -178,7 +205,22 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     say(f"baseline fit ({n_b} parameters, {len(masks) - 1}-fold cross-validation over {ne} modes)")
     none = extension(aug)
     base = fit(fits, problem, none, np.zeros(n_b + 1))
-    cross_validate(fits, problem, none, base, masks)
+    bases = Bases(with_extension(problem, none), base["theta"]) if aug.n_dof >= options.reduce_above else None
+    if bases is not None:
+        say(f"reduced models for the candidates: {bases.common.shape[1]} baseline columns "
+            f"(modes and static corrections), {elapsed()}")
+
+    def solver(c: Candidate | None) -> AbstractEigensolver:
+        """The eigensolver of a candidate's fits (None: the baseline's)."""
+        if bases is None or (c is not None and c.family == "visco"):
+            return Direct()
+        if c is None:
+            return bases.reduced(problem, none, np.zeros(1))
+        if c.solver is None:
+            c.solver = bases.reduced(problem, c.ext, np.zeros(c.ext.n_params))
+        return c.solver
+
+    cross_validate(fits, problem, none, base, masks, solver(None))
     theta_b = base["theta"][:n_b]
 
     # -- screening at the baseline: every element's stiffness and mass (the Jacobian), the
@@ -196,13 +238,13 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
         kinds = tuple(k for k in kinds if k != "frequency_dependent_stiffness")
     cands = [c for c in cands if c.effect.kind in kinds] + patch_candidates(model, nodes, screen, patches)
     structural = structural_candidates(aug, stiffened)
-    scans = {c: (list(c.scan), list(scan_costs(fits, problem, c.ext, theta_b, c.scan))) for c in structural}
+    scans = {c: (list(c.scan), list(scan_costs(fits, problem, c.ext, theta_b, c.scan, solver(c)))) for c in structural}
     for c in sorted(structural, key=lambda c: min(scans[c][1]))[:2]:  # the best two: each factor alone too
         grid, costs = scans[c]
         if c.ext.split and min(costs) < base["cost"]:
             t, r = grid[int(np.argmin(costs))]
             more = [(t + d, r) for d in (-3.0, -1.5, 1.5)] + [(t, r + d) for d in (-3.0, -1.5, 1.5)]
-            scans[c] = grid + more, costs + list(scan_costs(fits, problem, c.ext, theta_b, more))
+            scans[c] = grid + more, costs + list(scan_costs(fits, problem, c.ext, theta_b, more, solver(c)))
     for c in structural:
         grid, costs = scans[c]
         c.screen, c.theta0 = 1 - float(np.min(costs)) / base["cost"], np.atleast_1d(grid[int(np.argmin(costs))])
@@ -212,29 +254,32 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     with_masks(short, aug)
     say(f"{len(cands)} candidates screened; fitting {len(short)} ({elapsed()})")
 
-    for c in short:  # the better of the linearised step and none (the joints' scans are done)
-        if c.scan is not None and c not in structural:
-            c.theta0 = scan_start(fits, problem, c.ext, theta_b, c.scan)
-    for family in ("mask", "visco"):
-        group = [c for c in short if c.family == family]
-        if group:
-            say(f"  {family}: {len(group)} candidates ({elapsed()})")
-        for c in group:
-            c.result = fit(fits, problem, c.ext, np.concatenate([theta_b, c.theta0]))
+    def fitted(c: Candidate, theta0, i: int, n: int) -> dict:
+        say(f"  fitting {i}/{n}: {c.reference.kind} {c.reference.where()} ({elapsed()})")
+        return fit(fits, problem, c.ext, np.concatenate([theta_b, theta0]), solver(c))
+
+    for i, c in enumerate(sorted(short, key=lambda c: c.family), 1):
+        if c.scan is not None and c not in structural:  # the better of the linearised step and none
+            c.theta0 = scan_start(fits, problem, c.ext, theta_b, c.scan, solver(c))
+        c.result = fitted(c, c.theta0, i, len(short))
 
     # -- the place refined: an added mass or spring moves to a neighbouring grid while that fits better
-    for c0, c1 in _refine_places(fits, problem, aug, cands, short, base, theta_b):
+    for c0, c1 in _refine_places(fitted, solver, fits, problem, aug, cands, short, base, theta_b):
         say(f"  {c1.reference.kind} moved from grid {c0.reference.nodes[0]} to {c1.reference.nodes[0]} ({elapsed()})")
-    for c0, c1 in _refine_patches(fits, problem, model, aug, short, base, theta_b, f_e):
+    for c0, c1 in _refine_patches(fitted, model, aug, short, base, f_e):
         say(f"  {c1.reference.kind} moved from {c0.reference.where()} to {c1.reference.where()} ({elapsed()})")
 
-    # -- evidence; the most probable candidates cross-validated
+    # -- evidence; the most probable candidates fitted again on the full model and cross-validated
     n_rows = (ne, ne * ns)
     _, ranked, _ = evidence(short, base, n_b, n_rows, sigma2, mass)
     top = [c for c in ranked if np.isfinite(c.result["cost"])][:options.cross_validate]
+    if bases is not None:
+        say(f"fitting the {len(top)} most probable on the full model ({elapsed()})")
+        for c in top:
+            c.result = fit(fits, problem, c.ext, c.result["theta"])
     say(f"cross-validating the {len(top)} most probable ({len(masks) - 1} folds, {elapsed()})")
     for c in top:
-        cross_validate(fits, problem, c.ext, c.result, masks)
+        cross_validate(fits, problem, c.ext, c.result, masks, solver(c))
     effects, ranked, summary = evidence(short, base, n_b, n_rows, sigma2, mass)
     best = ranked[0].effect if summary["outcome"] == "effect" else None
 
@@ -293,12 +338,12 @@ def _climb(best: Candidate, fitted_neighbours) -> list[tuple[Candidate, Candidat
         best = step
 
 
-def _refine_places(fits: Fits, problem, aug: Model, cands: list[Candidate], short: list[Candidate], base: dict,
-                   theta_b: np.ndarray) -> list[tuple[Candidate, Candidate]]:
+def _refine_places(fitted, solver, fits: Fits, problem, aug: Model, cands: list[Candidate], short: list[Candidate],
+                   base: dict, theta_b: np.ndarray) -> list[tuple[Candidate, Candidate]]:
     """Hill-climb over the grids: the best fitted added mass (spring to ground) is fitted
-    at the neighbouring grids of the region, and moves while one fits better (the
-    linearised screen hardly separates neighbours). Fitted candidates join ``short``;
-    returns the moves made."""
+    (``fitted(candidate, θ₀, i, n)``) at the neighbouring grids of the region, and moves
+    while one fits better (the linearised screen hardly separates neighbours). Fitted
+    candidates join ``short``; returns the moves made."""
     at_grid = {(c.reference.kind, c.reference.nodes): c for c in cands if c.family == "mask"
                and c.reference.kind in ("added_mass", "boundary_spring") and not c.ext.split}
 
@@ -306,9 +351,9 @@ def _refine_places(fits: Fits, problem, aug: Model, cands: list[Candidate], shor
         kind = best.reference.kind
         new = [at_grid[kind, (g,)] for g in neighbours(aug, best.reference.nodes[0])
                if (kind, (g,)) in at_grid and at_grid[kind, (g,)] not in short]
-        for c in new:
-            c.theta0 = scan_start(fits, problem, c.ext, theta_b, c.scan)
-            c.result = fit(fits, problem, c.ext, np.concatenate([theta_b, c.theta0]))
+        for i, c in enumerate(new, 1):
+            c.theta0 = scan_start(fits, problem, c.ext, theta_b, c.scan, solver(c))
+            c.result = fitted(c, c.theta0, i, len(new))
             short.append(c)
         return new
 
@@ -321,8 +366,8 @@ def _refine_places(fits: Fits, problem, aug: Model, cands: list[Candidate], shor
     return moves
 
 
-def _refine_patches(fits: Fits, problem, model: Model, aug: Model, short: list[Candidate], base: dict,
-                    theta_b: np.ndarray, f_e) -> list[tuple[Candidate, Candidate]]:
+def _refine_patches(fitted, model: Model, aug: Model, short: list[Candidate], base: dict,
+                    f_e) -> list[tuple[Candidate, Candidate]]:
     """Hill-climb of the two best patch kinds (kind and part) that fit better than the
     baseline: the best fitted patch is fitted about each neighbouring shell grid and with
     the next radius up and down the ladder, and moves while one fits better (centre
@@ -331,23 +376,25 @@ def _refine_patches(fits: Fits, problem, model: Model, aug: Model, short: list[C
         return e.kind, getattr(e, "part", ""), e.nodes, round(e.radius, 9)
 
     mass = total_mass(model)
-    fitted = {key(c.reference): c for c in short if isinstance(c.reference, AbstractPatch)}
+    done = {key(c.reference): c for c in short if isinstance(c.reference, AbstractPatch)}
 
     def fitted_neighbours(best: Candidate) -> list[Candidate]:
         out = []
-        for patch in patch_neighbours(model, best, f_e):
-            if key(patch) not in fitted:
+        near = patch_neighbours(model, best, f_e)
+        for i, patch in enumerate(near, 1):
+            if key(patch) not in done:
                 c = patch_candidate(patch, model, None, f_e, mass)
                 with_masks([c], aug)
-                c.theta0 = best.result["theta"][len(theta_b):]
-                c.result = fit(fits, problem, c.ext, np.concatenate([theta_b, c.theta0]))
-                fitted[key(patch)] = c
+                theta = best.result["theta"]
+                c.theta0 = theta[len(theta) - len(c.theta0):]
+                c.result = fitted(c, c.theta0, i, len(near))
+                done[key(patch)] = c
                 short.append(c)
-            out.append(fitted[key(patch)])
+            out.append(done[key(patch)])
         return out
 
     best_of: dict = {}
-    for c in fitted.values():
+    for c in done.values():
         k = key(c.reference)[:2]
         if c.result["cost"] < base["cost"] and (k not in best_of or c.result["cost"] < best_of[k].result["cost"]):
             best_of[k] = c

@@ -16,6 +16,8 @@ and it needed a fresh preconditioner. Derivatives of the paired modes are exact
   rounding), derivatives of the paired ones by ``jaxfem.ritz_modes``.
 - :class:`Subspace`: the lowest modes by ``jaxfem.subspace``, warm-started from the last
   iterate and preconditioned with a fixed (K − σM)⁻¹ of a nearby model (Monte-Carlo).
+- :class:`Reduced`: Rayleigh–Ritz on a fixed basis (:mod:`updating._reduced`): the
+  diagnosis' candidate fits on a large model.
 
 A new solver subclasses :class:`AbstractEigensolver`.
 """
@@ -31,7 +33,7 @@ from jaxtyping import Array, Bool, Float
 
 import jaxfem
 
-from ._residuals import Evaluation, Problem, evaluate, paired_subspace
+from ._residuals import Evaluation, Problem, evaluate, pair, paired_evaluation, paired_subspace
 
 LOCKSTEP = "lockstep"  # vmap axis name of samples updated together (Monte-Carlo)
 
@@ -85,3 +87,28 @@ class Subspace(AbstractEigensolver):
                            lambda: solve(sol.basis, jaxfem.shifted_inverse(Ks, Ms, shift=self.shift)),
                            lambda: sol)
         return paired_subspace(K, M, sol, problem), sol.basis, sol.converged, refreshed
+
+
+class Reduced(AbstractEigensolver):
+    """The modes of the model projected on a fixed basis V (n × r): ``Vᵀ K(θ) V y = λ Vᵀ M(θ) V y``,
+    φ = V y (Rayleigh–Ritz). The reduced matrices are assembled from K(θ), M(θ) at every θ,
+    so their derivatives are those of the reduced problem, exact (:func:`jaxfem.eigh`).
+    Accurate while the basis spans the changed shapes (:mod:`updating._reduced`). Columns
+    ``padding`` (zero, so that bases of different sizes share a compiled fit) enter as
+    uncoupled modes far above the others."""
+
+    basis: Float[Array, "n r"]
+    padding: Bool[Array, " r"]
+
+    def __call__(self, theta, problem, warm):
+        K, M = jaxfem.assemble(problem.model(theta))
+        V = self.basis
+        kr, mr = V.T @ K.matmul(V), V.T @ M.matmul(V)
+        top = jax.lax.stop_gradient(1e3 * jnp.max(jnp.abs(jnp.diagonal(kr))) + 1.0)
+        kr, mr = kr + jnp.diag(jnp.where(self.padding, top, 0.0)), mr + jnp.diag(self.padding.astype(mr.dtype))
+        lam, y = jaxfem.eigh(0.5 * (kr + kr.T), 0.5 * (mr + mr.T), problem.n_model)
+        phi_s = (problem.C @ V) @ y
+        index, paired = pair(lam, phi_s, problem)
+        safe = jnp.where(paired, index, 0)
+        ev = paired_evaluation(lam[safe], phi_s[:, safe], index, paired, lam, phi_s, problem)
+        return ev, warm, jnp.asarray(True), jnp.asarray(False)

@@ -36,7 +36,7 @@ import numpy as np
 from ._candidates import Candidate
 from ._compiled import Compiled
 from ._effects import SCAN
-from ._eigensolvers import Direct
+from ._eigensolvers import AbstractEigensolver, Direct
 from ._engine import Settings, linearise, run
 from ._extension import Extension
 from ._report import rms_pct
@@ -57,12 +57,12 @@ def _cost_parts(theta, problem: Problem, mask, ev):
     return freq, jnp.sum(eps["eigenvector"] ** 2) + jnp.sum(jnp.where(unpaired, 1.0, 0.0))
 
 
-def _solve_one(theta0, problem: Problem, settings: Settings, skip):
-    """One fit by the engine (``skip``: none, evaluate at θ₀); at its θ the fitted and
-    held-out costs (frequency, shape), the paired eigenvalues and MAC, and the Jacobian
-    of the residual rows."""
-    state = run(theta0, problem, Direct(), jnp.zeros(0), settings, skip)
-    _, jac, aux = linearise(state.theta, problem, jnp.zeros(0), Direct())
+def _solve_one(theta0, problem: Problem, settings: Settings, skip, solver: AbstractEigensolver):
+    """One fit by the engine (``skip``: none, evaluate at θ₀) with ``solver``; at its θ the
+    fitted and held-out costs (frequency, shape), the paired eigenvalues and MAC, and the
+    Jacobian of the residual rows."""
+    state = run(theta0, problem, solver, jnp.zeros(0), settings, skip)
+    _, jac, aux = linearise(state.theta, problem, jnp.zeros(0), solver)
     ev = aux.ev
     fit, held = (_cost_parts(state.theta, problem, mask, ev) for mask in (problem.active, ~problem.active))
     return state.theta, fit, held, ev.lam_a, ev.paired, ev.mac, jac[:-state.theta.shape[0]]
@@ -70,16 +70,17 @@ def _solve_one(theta0, problem: Problem, settings: Settings, skip):
 
 class Fits:
     """The compiled fit of one diagnosis (freed with it, see :mod:`._compiled`); a cost
-    is the fit without a step (one compiled function, not two)."""
+    is the fit without a step (one compiled function, not two). ``solver``: the problem's
+    own eigensolver (:class:`Direct`) or a candidate's reduced one."""
 
     def __init__(self, settings: Settings):
         self._solve, self.settings = Compiled(_solve_one), settings
 
-    def solve(self, theta0, problem: Problem):
-        return self._solve(jnp.asarray(theta0), problem, self.settings, jnp.asarray(False))
+    def solve(self, theta0, problem: Problem, solver: AbstractEigensolver = Direct()):
+        return self._solve(jnp.asarray(theta0), problem, self.settings, jnp.asarray(False), solver)
 
-    def cost(self, theta, problem: Problem) -> float:
-        out = self._solve(jnp.asarray(theta), problem, self.settings, jnp.asarray(True))
+    def cost(self, theta, problem: Problem, solver: AbstractEigensolver = Direct()) -> float:
+        out = self._solve(jnp.asarray(theta), problem, self.settings, jnp.asarray(True), solver)
         return float(sum(out[1]))
 
 
@@ -91,17 +92,19 @@ def with_extension(problem: Problem, ext: Extension, mask=None) -> Problem:
                        is_leaf=lambda x: x is None)
 
 
-def scan_costs(fits: Fits, problem: Problem, ext: Extension, theta_b: np.ndarray, grid=SCAN) -> np.ndarray:
+def scan_costs(fits: Fits, problem: Problem, ext: Extension, theta_b: np.ndarray, grid=SCAN,
+               solver: AbstractEigensolver = Direct()) -> np.ndarray:
     """Cost at each point of a coarse grid of the effect's log-factors."""
     p = with_extension(problem, ext, np.ones(problem.lam_e.shape[0], bool))
-    return np.array([fits.cost(np.append(theta_b, t), p) for t in grid])
+    return np.array([fits.cost(np.append(theta_b, t), p, solver) for t in grid])
 
 
-def scan_start(fits: Fits, problem: Problem, ext: Extension, theta_b: np.ndarray, grid=SCAN) -> np.ndarray:
+def scan_start(fits: Fits, problem: Problem, ext: Extension, theta_b: np.ndarray, grid=SCAN,
+               solver: AbstractEigensolver = Direct()) -> np.ndarray:
     """Best starting θ of an effect on a coarse grid: a fit from the reference alone can
     stall where modes swap partners on the way (a much softer joint, a heavy added mass,
     a strong frequency law)."""
-    costs = scan_costs(fits, problem, ext, theta_b, grid)
+    costs = scan_costs(fits, problem, ext, theta_b, grid, solver)
     return np.atleast_1d(np.asarray(grid[int(np.argmin(costs))], float))
 
 
@@ -111,11 +114,12 @@ def fold_masks(n: int, folds: int) -> list[np.ndarray]:
     return [np.ones(n, bool)] + [ids % folds != k for k in range(min(folds, n))]
 
 
-def fit(fits: Fits, problem: Problem, ext: Extension, theta0) -> dict:
+def fit(fits: Fits, problem: Problem, ext: Extension, theta0, solver: AbstractEigensolver = Direct()) -> dict:
     """Fit one extension on all modes: θ, cost (frequency + shape), Δf, MAC, Jacobian J."""
     lam_e = np.asarray(problem.lam_e)
     try:
-        out = jax.tree.map(np.asarray, fits.solve(theta0, with_extension(problem, ext, np.ones(len(lam_e), bool))))
+        out = jax.tree.map(np.asarray, fits.solve(theta0, with_extension(problem, ext, np.ones(len(lam_e), bool)),
+                                                  solver))
     except RuntimeError as err:  # a trial step made the model non-finite: report, do not rank
         return {"theta": np.asarray(theta0), "cost": float("inf"), "freq_dev": np.full(len(lam_e), np.nan),
                 "mac": np.full(len(lam_e), np.nan), "error": str(err).splitlines()[0]}
@@ -124,7 +128,8 @@ def fit(fits: Fits, problem: Problem, ext: Extension, theta0) -> dict:
             "freq_dev": _deviation(lam_a, paired, lam_e), "mac": np.where(paired, macs, np.nan), "jac": jac}
 
 
-def cross_validate(fits: Fits, problem: Problem, ext: Extension, res: dict, masks) -> None:
+def cross_validate(fits: Fits, problem: Problem, ext: Extension, res: dict, masks,
+                   solver: AbstractEigensolver = Direct()) -> None:
     """Held-out costs (frequency, shape) and Δf per test mode, each fold fitted from the
     all-modes fit; stored in ``res``."""
     lam_e = np.asarray(problem.lam_e)
@@ -132,7 +137,7 @@ def cross_validate(fits: Fits, problem: Problem, ext: Extension, res: dict, mask
     res["heldout_mac"] = np.full(len(lam_e), np.nan)
     res["cv_freq"] = res["cv_shape"] = 0.0
     for m in masks[1:]:
-        _, _, (hf, hs), lam_a, paired, macs, _ = fits.solve(res["theta"], with_extension(problem, ext, m))
+        _, _, (hf, hs), lam_a, paired, macs, _ = fits.solve(res["theta"], with_extension(problem, ext, m), solver)
         res["cv_freq"] += float(hf)
         res["cv_shape"] += float(hs)
         res["heldout_freq_dev"][~m] = _deviation(np.asarray(lam_a), np.asarray(paired), lam_e)[~m]
