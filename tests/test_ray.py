@@ -1,4 +1,5 @@
-"""A Monte-Carlo study's chunks on a local Ray cluster (updating._ray)."""
+"""A Monte-Carlo study's chunks and a diagnosis' candidate fits on a local Ray cluster
+(updating._ray)."""
 
 import functools
 import os
@@ -9,8 +10,11 @@ import numpy as np
 import pytest
 import ray
 
+from test_reduced import case, joint  # noqa: F401 (fixtures)
+from updating._eigensolvers import Direct
+from updating._evidence import candidate_fit
 from updating._montecarlo import Runner, default_study, montecarlo
-from updating._ray import montecarlo_ray
+from updating._ray import fit_candidates_ray, montecarlo_ray
 
 # Ray starts its processes with fork + exec (subprocess); JAX warns at every fork once its
 # backend runs (other tests of this xdist worker may have started it). Exec'd children
@@ -97,3 +101,20 @@ def test_without_ray_the_message_names_the_extra(monkeypatch):
     monkeypatch.setitem(sys.modules, "ray", None)
     with pytest.raises(ImportError, match=r"jaxfem\[ray\]"):
         montecarlo_ray(default_study(1))
+
+
+def test_candidate_fits_on_ray_equal_one_process(cores, joint):  # noqa: F811
+    """The frame's released joint fitted on the full and on the reduced model, with a scan
+    and without: the same θ₀, θ and cost as fitted here (float64 on one core each)."""
+    problem, fits, c, red = joint
+    jobs = [(0, c.ext, np.zeros(0), None, np.array([0.0, -4.6]), Direct()),
+            (1, c.ext, np.zeros(0), c.scan, np.zeros(2), red)]
+    remote = dict((job[0], out) for job, out in fit_candidates_ray(problem, fits.settings, jobs, workers=2))
+    assert sorted(remote) == [0, 1]
+    for job in jobs:
+        theta0, here = candidate_fit(fits, problem, *job[1:])
+        there = remote[job[0]]
+        assert there[1]["theta"].dtype == np.float64
+        np.testing.assert_allclose(there[0], theta0)
+        np.testing.assert_allclose(there[1]["theta"], here["theta"], rtol=1e-7, atol=1e-9)
+        np.testing.assert_allclose(there[1]["cost"], here["cost"], rtol=1e-7)

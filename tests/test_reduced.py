@@ -1,10 +1,8 @@
 """The diagnosis' reduced fits (updating._reduced): on the frame, a joint released by two
 orders of magnitude keeps its eigenvalues within 1e-4 of the full model's in the basis made
 at the stiff baseline; the reduced derivative equals finite differences; a fit on the
-reduced model lands where the full one does; the diagnosis through reduced fits finds
-the hidden joint."""
-
-from dataclasses import replace
+reduced model lands where the full one does. The diagnosis through reduced fits:
+tests/test_diagnose.py::test_joint."""
 
 import jax
 import jax.numpy as jnp
@@ -18,7 +16,7 @@ from jaxfem.io import read_bdf_text
 from test_diagnose import measure
 from updating import Options, ParameterSet
 from updating._candidates import augment, region_structures, structural_candidates
-from updating._diagnose import DiagnoseOptions, diagnose
+from updating._diagnose import DiagnoseOptions
 from updating._effects import Effect, at_reference
 from updating._evidence import Fits, fit, with_extension
 from updating._extension import extension
@@ -80,11 +78,3 @@ def test_reduced_fit_lands_where_the_full_one_does(joint):
     assert np.allclose(reduced["theta"], full["theta"], atol=1e-3)
     assert abs(reduced["cost"] / full["cost"] - 1) < 1e-3
 
-
-@pytest.mark.slow
-def test_diagnosis_through_reduced_fits_finds_the_joint(case):
-    model, test = case
-    report = diagnose(model, test, options=replace(DiagnoseOptions(), reduce_above=0)).report
-    top = report["effects"][0]
-    assert report["outcome"] == "effect" and (top["kind"], top["nodes"]) == ("joint", [NODE])
-    assert top["heldout_rms_freq_dev_pct_after"] < 2.5 * 100 * 0.002  # 2.5× the frequency noise

@@ -69,6 +69,7 @@ from ._eigensolvers import AbstractEigensolver, Direct
 from ._engine import Settings
 from ._evidence import (
     Fits,
+    candidate_fit,
     combine,
     cross_validate,
     evidence,
@@ -82,6 +83,7 @@ from ._evidence import (
 from ._extension import extension
 from ._localisation import group_scores, residual_forces
 from ._parameters import Options, Parameter, ParameterSet
+from ._ray import fit_candidates_ray
 from ._reduced import Bases
 from ._report import json_number, rms_pct
 from ._residuals import evaluate, rows
@@ -111,6 +113,9 @@ class DiagnoseOptions:
     ``reduce_above``: on a model of at least this many DoFs, the candidates are screened,
     fitted and cross-validated on reduced models (:mod:`updating._reduced`), and the most
     probable ones fitted again on the full model, whose fit is the one reported.
+    ``ray``: the shortlisted candidates fitted on Ray workers (``"local"``, ``"auto"`` or
+    a cluster address, :func:`updating._ray.fit_candidates_ray`; ``ray_workers`` of them,
+    default one per CPU); the hill-climb and the cross-validation stay on the driver.
     """
 
     noise_freq: float = 0.002
@@ -128,6 +133,8 @@ class DiagnoseOptions:
     tolerance: float = 1e-3
     kinds: tuple[str, ...] = KINDS
     reduce_above: int = 2000
+    ray: str | None = None
+    ray_workers: int | None = None
 
     @property
     def settings(self) -> Settings:
@@ -258,10 +265,19 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
         say(f"  fitting {i}/{n}: {c.reference.kind} {c.reference.where()} ({elapsed()})")
         return fit(fits, problem, c.ext, np.concatenate([theta_b, theta0]), solver(c))
 
-    for i, c in enumerate(sorted(short, key=lambda c: c.family), 1):
-        if c.scan is not None and c not in structural:  # the better of the linearised step and none
-            c.theta0 = scan_start(fits, problem, c.ext, theta_b, c.scan, solver(c))
-        c.result = fitted(c, c.theta0, i, len(short))
+    # each from the better of the linearised step and none (the joints' scans are done)
+    order = sorted(short, key=lambda c: c.family)
+    jobs = [(i, c.ext, theta_b, c.scan if c not in structural else None, c.theta0, solver(c))
+            for i, c in enumerate(order)]
+    if options.ray:
+        say(f"  on Ray ({options.ray}): {len(jobs)} candidates")
+        done = fit_candidates_ray(problem, options.settings, jobs, address=options.ray, workers=options.ray_workers)
+    else:
+        done = ((job, candidate_fit(fits, problem, *job[1:])) for job in jobs)
+    for k, (job, (theta0, result)) in enumerate(done, 1):
+        c = order[job[0]]
+        c.theta0, c.result = theta0, result
+        say(f"  fitted {k}/{len(order)}: {c.reference.kind} {c.reference.where()} ({elapsed()})")
 
     # -- the place refined: an added mass or spring moves to a neighbouring grid while that fits better
     for c0, c1 in _refine_places(fitted, solver, fits, problem, aug, cands, short, base, theta_b):

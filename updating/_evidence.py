@@ -108,6 +108,15 @@ def scan_start(fits: Fits, problem: Problem, ext: Extension, theta_b: np.ndarray
     return np.atleast_1d(np.asarray(grid[int(np.argmin(costs))], float))
 
 
+def candidate_fit(fits: Fits, problem: Problem, ext: Extension, theta_b: np.ndarray, scan, theta0,
+                  solver: AbstractEigensolver = Direct()) -> tuple[np.ndarray, dict]:
+    """A shortlisted candidate's start (the best point of its ``scan`` grid, or ``theta0``
+    without one) and its fit on all modes: ``(θ₀, fit)``."""
+    if scan is not None:
+        theta0 = scan_start(fits, problem, ext, theta_b, scan, solver)
+    return theta0, fit(fits, problem, ext, np.concatenate([theta_b, theta0]), solver)
+
+
 def fold_masks(n: int, folds: int) -> list[np.ndarray]:
     """All modes, then one mask per fold (mode i held out in fold i mod k)."""
     ids = np.arange(n)

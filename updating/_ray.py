@@ -1,4 +1,5 @@
-"""A Monte-Carlo study (:mod:`updating._montecarlo`) run on a Ray cluster.
+"""A Monte-Carlo study (:mod:`updating._montecarlo`) and a diagnosis' candidate fits
+(:func:`updating.diagnose`, ``DiagnoseOptions.ray``) run on a Ray cluster.
 
 Each chunk ``(n, start, stop)`` is a call on a Ray actor: one worker process that pins
 its CPUs, runs float64 on one JAX device and keeps one :class:`Runner` (its compiled
@@ -8,11 +9,19 @@ files, resume, progress); the sample keys do not depend on where a chunk ran, so
 result equals that of one process with as many cores as a worker (XLA-CPU splits some
 reductions by its thread count). A chunk whose worker process or node is lost is run
 again on a new worker (``max_retries`` times at most), and the retries are counted.
+
+A diagnosis' shortlisted candidates are fitted the same way (:func:`fit_candidates_ray`):
+each worker holds one compiled fit of the diagnosis' problem and takes a candidate at a
+time (its masks, start, scan grid and reduced basis travel with it); a candidate whose
+worker is lost is fitted again elsewhere. For many hosts the same call takes the
+cluster's address: the driver keeps the problem, the bases and the ranking, the workers
+only fit, so the traffic is one problem per worker and one basis per candidate.
 """
 
 from __future__ import annotations
 
 import collections
+import contextlib
 import os
 import tempfile
 import warnings
@@ -20,7 +29,9 @@ from collections.abc import Callable
 from pathlib import Path
 
 import jax
+import numpy as np
 
+from ._evidence import Fits, candidate_fit
 from ._montecarlo import Progress, Runner, _collect, _Store
 from ._study import MonteCarloResult, Study
 
@@ -51,27 +62,28 @@ def _pin(num_cpus: int):
 
 
 class _Worker:
-    """The Ray actor: CPUs pinned and float64 before JAX starts its backend, one device,
-    one runner for all its chunks."""
+    """The Ray actor of a Monte-Carlo study: CPUs pinned and float64 before JAX starts its
+    backend, one device, one runner for all its chunks."""
 
     def __init__(self, study: Study, runner_factory, num_cpus: int):
         self._lock = _pin(num_cpus)
         jax.config.update("jax_enable_x64", True)
         self.runner = runner_factory(study, devices=jax.devices()[:1])
 
-    def chunk(self, n: int, start: int, stop: int) -> dict:
-        return self.runner.chunk(n, start, stop)
+    def run(self, chunk: tuple) -> dict:
+        return self.runner.chunk(*chunk)
 
 
 class _Pool:
-    """Chunks dispatched to actors, one at a time each: an idle actor takes the next chunk
-    of the n-mode group it has compiled, else of the group with most chunks waiting; an
-    actor with nothing left is released at once (its CPUs free a replacement's place)."""
+    """Jobs dispatched to actors (``worker(*args)``, ``.run(job)``), one at a time each: an
+    idle actor takes the next job of the group (``job[0]``: a chunk's n-mode group) it has
+    compiled, else of the group with most jobs waiting; an actor with nothing left is
+    released at once (its CPUs free a replacement's place)."""
 
-    def __init__(self, ray, study: Study, runner_factory, num_cpus: int, workers: int, max_retries: int):
+    def __init__(self, ray, worker, args: tuple, num_cpus: int, workers: int, max_retries: int):
         self.ray = ray
-        self.actor = ray.remote(_Worker).options(num_cpus=num_cpus, max_restarts=0, max_task_retries=0)
-        self.args = (study, runner_factory, num_cpus)
+        self.actor = ray.remote(worker).options(num_cpus=num_cpus, max_restarts=0, max_task_retries=0)
+        self.args = args
         self.workers, self.max_retries = workers, max_retries
         self.queue: list = []
         self.idle: list = []  # (actor, n of its last chunk)
@@ -91,14 +103,14 @@ class _Pool:
             group = n if n in waiting else max(waiting, key=waiting.get)
             chunk = next(c for c in self.queue if c[0] == group)
             self.queue.remove(chunk)
-            self.running[actor.chunk.remote(*chunk)] = (chunk, actor)
+            self.running[actor.run.remote(chunk)] = (chunk, actor)
         if not self.queue:
             for actor, _ in self.idle:
                 self.ray.kill(actor)
             self.idle.clear()
 
     def results(self):
-        """Yield ``(chunk, data)`` as chunks finish; a chunk whose worker was lost is queued
+        """Yield ``(job, data)`` as jobs finish; a job whose worker was lost is queued
         again and a new worker started in its place."""
         while self.running:
             [ref], _ = self.ray.wait(list(self.running), num_returns=1)
@@ -106,9 +118,10 @@ class _Pool:
             try:
                 data = self.ray.get(ref)
             except self.ray.exceptions.RayActorError as err:  # the process or its node died
-                self.failures[chunk] += 1
-                if self.failures[chunk] > self.max_retries:
-                    raise RuntimeError(f"chunk {chunk}: worker lost {self.failures[chunk]} times "
+                self.failures[id(chunk)] += 1
+                if self.failures[id(chunk)] > self.max_retries:
+                    label = f"chunk {chunk}" if all(isinstance(x, int) for x in chunk) else f"candidate {chunk[0]}"
+                    raise RuntimeError(f"{label}: worker lost {self.failures[id(chunk)]} times "
                                        f"(max_retries={self.max_retries}): {err}") from err
                 self.retries += 1
                 self.ray.kill(actor)
@@ -149,21 +162,11 @@ def montecarlo_ray(study: Study, *, address: str | None = None, out: str | Path 
     **Returns:** :class:`MonteCarloResult`, equal to the last bit to that of one process
     on one device with ``num_cpus`` cores (e.g. under ``taskset -c 0`` for 1).
     """
-    try:
-        import ray
-    except ImportError:
-        raise ImportError("montecarlo_ray needs Ray: pip install 'jaxfem[ray]'") from None
     if num_cpus < 1 or max_retries < 0 or (workers is not None and workers < 1):
         raise ValueError("num_cpus and workers must be at least 1, max_retries at least 0")
-    connected = not ray.is_initialized()
-    if connected:
-        with warnings.catch_warnings():
-            # Ray starts its processes by fork + exec: no JAX thread is shared with them.
-            warnings.filterwarnings("ignore", r"os\.fork\(\) was called", RuntimeWarning)
-            ray.init(address=address)
-    try:
+    with _cluster(address, "montecarlo_ray") as ray:
         workers = workers or max(1, int(ray.cluster_resources().get("CPU", 0)) // num_cpus)
-        pool = _Pool(ray, study, runner_factory, num_cpus, workers, max_retries)
+        pool = _Pool(ray, _Worker, (study, runner_factory, num_cpus), num_cpus, workers, max_retries)
         store = _Store(out, study) if out is not None else None
         # Started before the driver computes the reference; _collect's own list of chunks
         # to do is read from the same store and is the same.
@@ -173,6 +176,66 @@ def montecarlo_ray(study: Study, *, address: str | None = None, out: str | Path 
             return _collect(study, runner or runner_factory(study), store, report, lambda todo: pool.results())
         finally:
             pool.close()
+
+
+@contextlib.contextmanager
+def _cluster(address: str | None, caller: str):
+    """Ray, connected to ``address`` (``"local"`` or None: a local cluster, or the one
+    ``RAY_ADDRESS`` names; ``"auto"``; ``"ray://head:10001"``) unless already initialised;
+    disconnected at the end if connected here."""
+    try:
+        import ray
+    except ImportError:
+        raise ImportError(f"{caller} needs Ray: pip install 'jaxfem[ray]'") from None
+    connected = not ray.is_initialized()
+    if connected:
+        with warnings.catch_warnings():
+            # Ray starts its processes by fork + exec: no JAX thread is shared with them.
+            warnings.filterwarnings("ignore", r"os\.fork\(\) was called", RuntimeWarning)
+            ray.init(address=None if address == "local" else address)
+    try:
+        yield ray
     finally:
         if connected:
             ray.shutdown()
+
+
+class _FitWorker:
+    """The Ray actor of a diagnosis: CPUs pinned, float64, one compiled fit of the problem
+    for all its candidates."""
+
+    def __init__(self, problem, settings, num_cpus: int):
+        self._lock = _pin(num_cpus)
+        jax.config.update("jax_enable_x64", True)
+        self.problem, self.fits = _device(problem), Fits(_device(settings))
+
+    def run(self, job: tuple):
+        return candidate_fit(self.fits, self.problem, *_device(job[1:]))
+
+
+def _host(tree):
+    """JAX arrays as NumPy: they travel as float64 (a worker reads its arguments before it
+    can enable float64)."""
+    return jax.tree.map(lambda x: np.asarray(x) if isinstance(x, jax.Array) else x, tree)
+
+
+def _device(tree):
+    """NumPy arrays back as JAX arrays."""
+    return jax.tree.map(lambda x: jax.numpy.asarray(x) if isinstance(x, np.ndarray) else x, tree)
+
+
+def fit_candidates_ray(problem, settings, jobs: list[tuple], *, address: str | None = None,
+                       workers: int | None = None, num_cpus: int = 1, max_retries: int = 3):
+    """Yield ``(job, (θ₀, fit))`` of a diagnosis' candidate fits as they finish, fitted on
+    Ray workers (:func:`updating._evidence.candidate_fit`; ``job = (index, ext, θ_b, scan,
+    θ₀, eigensolver)``); ``address``, ``workers``, ``num_cpus``, ``max_retries`` as for
+    :func:`montecarlo_ray`."""
+    with _cluster(address, "diagnose --ray") as ray:
+        workers = workers or max(1, int(ray.cluster_resources().get("CPU", 0)) // num_cpus)
+        pool = _Pool(ray, _FitWorker, (_host(problem), _host(settings), num_cpus), num_cpus,
+                     min(workers, len(jobs)), max_retries)
+        pool.start([(job[0], *_host(job[1:])) for job in jobs])
+        try:
+            yield from pool.results()
+        finally:
+            pool.close()

@@ -119,7 +119,13 @@ def diagnosis(model, test, params, *, model_name: str, test_name: str, json_out:
     def say(line: str) -> None:
         typer.echo(f"[diagnose] {line}", err=True)
 
-    diag = diagnose(model, test, params, options=options or DiagnoseOptions(), progress=say)
+    options = options or DiagnoseOptions()
+    try:
+        diag = diagnose(model, test, params, options=options, progress=say)
+    except (ImportError, ConnectionError) as err:
+        if not options.ray:
+            raise
+        fail(f"--ray {options.ray}: {err}")
     rep = dict(diag.to_json(), model=model_name, test=test_name)
     if reference is not None:
         rep["reference"] = reference
@@ -133,7 +139,7 @@ def diagnosis(model, test, params, *, model_name: str, test_name: str, json_out:
             typer.echo(f"[update] iteration {it.iteration:3d}  cost {it.cost:.4e}", err=True)
 
         confirmation = add_effect(model, test, diag.best, params, progress=progress,
-                                  noise_freq=(options or DiagnoseOptions()).noise_freq)
+                                  noise_freq=options.noise_freq)
         rep["after"] = confirmation.to_json()
         _print_confirmation(rep["after"])
     if frf_path is not None and confirmation is not None:
@@ -164,6 +170,9 @@ def diagnose(
         help="modes of a reference state (e.g. before the damage) at the same sensors: diagnose the change "
              "between it and TEST, carried onto the model's modes (its own error cancels); state the noise "
              "of a difference")] = None,
+    ray: Annotated[str | None, typer.Option(
+        "--ray", metavar="ADDRESS", help="fit the candidates on a Ray cluster: 'local' (start one here), 'auto' "
+                                         "(the cluster of this node) or ray://HEAD:10001 (needs jaxfem[ray])")] = None,
 ) -> None:
     """Where does the model fail, and which physical effect is missing? Localise the error,
     rank candidate effects by Bayesian evidence, test the most probable on held-out modes,
@@ -178,7 +187,7 @@ def diagnose(
     if not (noise_freq > 0 and noise_shape > 0):
         fail("--noise-freq and --noise-shape must be positive (percent)")
     options = DiagnoseOptions(noise_freq=noise_freq / 100, noise_shape=noise_shape / 100,
-                              eigensolver=check_solver(solver))
+                              eigensolver=check_solver(solver), ray=ray)
     diagnosis(model, test, params, model_name=model_path.name, test_name=test_path.name, json_out=json_out,
               report=report, frf_path=frf_path, options=options,
               reference=None if change is None else {"file": reference_path.name, "modes": change})
