@@ -182,7 +182,13 @@ def localised_grids(model: Model, screen: Screen, node_scores: dict[int, float],
                     for g in element_grids(model, ids)}, key=lambda k: (-node_scores.get(k, 0.0), k))
     top = max(node_scores.values(), default=0.0)
     grids += sorted((k for k in node_scores if node_scores[k] >= fraction * top), key=lambda k: -node_scores[k])
-    return [k for k in dict.fromkeys(grids) if elements_at(model, k) and not constrained_components(model, k)][:n]
+    region = []
+    for k in dict.fromkeys(grids):
+        if len(region) == n:
+            break
+        if elements_at(model, k) and not constrained_components(model, k):
+            region.append(k)
+    return region
 
 
 def region_structures(model: Model, region: list[int], node_score: dict, kinds, n: int) -> list[AbstractEffect]:

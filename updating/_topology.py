@@ -15,12 +15,18 @@ from jaxfem.elements import laminates, shell_mass, shell_stiffness
 
 
 def _own(model: Model, row: int) -> set[int]:
-    node = model.node_ids[row]
-    return {int(c) for n, c in model.dofs.labels if n == node}
+    labels = np.asarray(model.dofs.labels)
+    return set(labels[labels[:, 0] == model.node_ids[row], 1].tolist())
+
+
+_MASTERS: dict[int, tuple[Model, dict[int, int]]] = {}  # id(model) → (model, its masters): the last few
 
 
 def masters(model: Model) -> dict[int, int]:
-    """RBE2-dependent grid → the grid whose DoFs carry it (from the DoF map)."""
+    """RBE2-dependent grid → the grid whose DoFs carry it (from the DoF map; computed once
+    per model, since the effects ask for every grid)."""
+    if id(model) in _MASTERS and _MASTERS[id(model)][0] is model:
+        return _MASTERS[id(model)][1]
     owner = np.asarray(model.dofs.labels[:, 0])
     out = {}
     for row, node in enumerate(model.node_ids):
@@ -29,6 +35,9 @@ def masters(model: Model) -> dict[int, int]:
         owners = set(owner[idx].tolist())
         if idx.size and int(node) not in owners and len(owners) == 1:
             out[int(node)] = owners.pop()
+    while len(_MASTERS) >= 4:
+        _MASTERS.pop(next(iter(_MASTERS)))
+    _MASTERS[id(model)] = (model, out)
     return out
 
 
