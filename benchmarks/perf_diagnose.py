@@ -50,11 +50,16 @@ def run_case(case) -> dict:
     start = time.perf_counter()
     report = diagnose(model, test, parameters(case)).report
     seconds = time.perf_counter() - start
+    return _row(case.name, case.description, model, test, report, seconds, found(report, case))
+
+
+def _row(case: str, hidden: str, model, test, report: dict, seconds: float, right: bool, **more) -> dict:
+    """One row of the table from a diagnosis' report."""
     top = report["effects"][0] if report["outcome"] == "effect" else None
     return {
-        "case": case.name, "hidden": case.description, "n_dof": model.n_dof, "modes": len(test.frequencies_hz),
+        "case": case, "hidden": hidden, "n_dof": model.n_dof, "modes": len(test.frequencies_hz),
         "outcome": report["outcome"], "declared": f"{top['kind']} at {top['where']}" if top else "–",
-        "right": found(report, case), "ties": [t["where"] for t in report["ties"]],
+        "right": right, **more, "ties": [t["where"] for t in report["ties"]],
         "heldout_before_pct": report["baseline"]["heldout_rms_freq_dev_pct"],
         "heldout_after_pct": top["heldout_rms_freq_dev_pct_after"] if top else None,
         "posterior": top["posterior"] if top else report["baseline_posterior"],
@@ -88,18 +93,9 @@ def run_panel(control: bool = False) -> dict:
         centre = xyz[model.node_index(top["nodes"])[0]]
         off = float(np.hypot(centre[0] - cp.DAMAGE_CENTRE[0], centre[1] - cp.DAMAGE_CENTRE[1]))
     right = (report["outcome"] != "effect") if control else (off is not None and off <= cp.COARSE)
-    return {
-        "case": "panel control" if control else "panel delamination", "hidden": "none" if control else
-        f"delamination r = {1000 * cp.DAMAGE_RADIUS:.0f} mm at {cp.DAMAGE_CENTRE}", "n_dof": model.n_dof,
-        "modes": len(test.frequencies_hz), "outcome": report["outcome"],
-        "declared": f"{top['kind']} at {top['where']}" if top else "–", "right": right, "centre_off_m": off,
-        "ties": [t["where"] for t in report["ties"]],
-        "heldout_before_pct": report["baseline"]["heldout_rms_freq_dev_pct"],
-        "heldout_after_pct": top["heldout_rms_freq_dev_pct_after"] if top else None,
-        "posterior": top["posterior"] if top else report["baseline_posterior"],
-        "chi2_before": report["baseline"]["chi2_per_row"], "chi2_after": top["chi2_per_row"] if top else None,
-        "seconds": seconds, "verdict": report["verdict"],
-    }
+    hidden = "none" if control else f"delamination r = {1000 * cp.DAMAGE_RADIUS:.0f} mm at {cp.DAMAGE_CENTRE}"
+    return _row("panel control" if control else "panel delamination", hidden, model, test, report, seconds, right,
+                centre_off_m=off)
 
 
 BARREL_MASS = 20.0  # kg: the payload the barrel's model lacks
@@ -137,18 +133,9 @@ def run_barrel(control: bool = False, n_dof: int = 33_000) -> dict:
     if top and top["kind"] in ("added_mass", "distributed_mass"):
         off = float(np.linalg.norm(xyz[model.node_index(top["nodes"])[0]] - xyz[model.node_index([target])[0]]))
     right = (report["outcome"] != "effect") if control else (off is not None and off <= fuselage.FRAME_PITCH / 2)
-    return {
-        "case": "barrel control" if control else "barrel missing payload",
-        "hidden": "none" if control else f"{BARREL_MASS:.0f} kg at floor grid {target}", "n_dof": model.n_dof,
-        "modes": len(test.frequencies_hz), "outcome": report["outcome"],
-        "declared": f"{top['kind']} at {top['where']}" if top else "–", "right": right, "centre_off_m": off,
-        "ties": [t["where"] for t in report["ties"]],
-        "heldout_before_pct": report["baseline"]["heldout_rms_freq_dev_pct"],
-        "heldout_after_pct": top["heldout_rms_freq_dev_pct_after"] if top else None,
-        "posterior": top["posterior"] if top else report["baseline_posterior"],
-        "chi2_before": report["baseline"]["chi2_per_row"], "chi2_after": top["chi2_per_row"] if top else None,
-        "seconds": seconds, "verdict": report["verdict"],
-    }
+    hidden = "none" if control else f"{BARREL_MASS:.0f} kg at floor grid {target}"
+    return _row("barrel control" if control else "barrel missing payload", hidden, model, test, report, seconds,
+                right, centre_off_m=off)
 
 
 def main() -> None:

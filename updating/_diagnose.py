@@ -199,7 +199,8 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     chi2_shape = float(jnp.sum(eps ** 2)) / sigma2 / (ne * ns)
     if chi2_shape < SHAPE_SIGNAL:  # the expanded shapes are noise: their residual forces point nowhere
         say(f"residual forces left out of the region: the shapes fit within noise (χ² per row {chi2_shape:.2f})")
-    node_nominal = combine(node_max(model, nominal_screen.element_reduction("k")),
+    k, m = nominal_screen.element_reduction("k"), nominal_screen.element_reduction("m")
+    node_nominal = combine(node_max(model, {e: max(k.get(e, 0.0), m.get(e, 0.0)) for e in k | m}),
                            node_b if chi2_shape >= SHAPE_SIGNAL else {})
     nodes = localised_grids(model, nominal_screen, node_nominal, options.max_nodes, options.region)
     structures = region_structures(model, nodes, node_nominal, options.kinds, options.max_structural)
@@ -211,7 +212,7 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     # -- baseline: the engineer's parameters fitted on all modes and on each fold
     say(f"baseline fit ({n_b} parameters, {len(masks) - 1}-fold cross-validation over {ne} modes)")
     none = extension(aug)
-    base = fit(fits, problem, none, np.zeros(n_b + 1))
+    base = fit(fits, problem, none, np.zeros(n_b + 1), skip=n_b == 0)  # nothing to fit without parameters
     bases = Bases(with_extension(problem, none), base["theta"]) if aug.n_dof >= options.reduce_above else None
     if bases is not None:
         say(f"reduced models for the candidates: {bases.common.shape[1]} baseline columns "

@@ -76,8 +76,8 @@ class Fits:
     def __init__(self, settings: Settings):
         self._solve, self.settings = Compiled(_solve_one), settings
 
-    def solve(self, theta0, problem: Problem, solver: AbstractEigensolver = Direct()):
-        return self._solve(jnp.asarray(theta0), problem, self.settings, jnp.asarray(False), solver)
+    def solve(self, theta0, problem: Problem, solver: AbstractEigensolver = Direct(), skip: bool = False):
+        return self._solve(jnp.asarray(theta0), problem, self.settings, jnp.asarray(skip), solver)
 
     def cost(self, theta, problem: Problem, solver: AbstractEigensolver = Direct()) -> float:
         out = self._solve(jnp.asarray(theta), problem, self.settings, jnp.asarray(True), solver)
@@ -123,12 +123,14 @@ def fold_masks(n: int, folds: int) -> list[np.ndarray]:
     return [np.ones(n, bool)] + [ids % folds != k for k in range(min(folds, n))]
 
 
-def fit(fits: Fits, problem: Problem, ext: Extension, theta0, solver: AbstractEigensolver = Direct()) -> dict:
-    """Fit one extension on all modes: θ, cost (frequency + shape), Δf, MAC, Jacobian J."""
+def fit(fits: Fits, problem: Problem, ext: Extension, theta0, solver: AbstractEigensolver = Direct(),
+        skip: bool = False) -> dict:
+    """Fit one extension on all modes (``skip``: evaluate at θ₀): θ, cost (frequency +
+    shape), Δf, MAC, Jacobian J."""
     lam_e = np.asarray(problem.lam_e)
     try:
         out = jax.tree.map(np.asarray, fits.solve(theta0, with_extension(problem, ext, np.ones(len(lam_e), bool)),
-                                                  solver))
+                                                  solver, skip))
     except RuntimeError as err:  # a trial step made the model non-finite: report, do not rank
         return {"theta": np.asarray(theta0), "cost": float("inf"), "freq_dev": np.full(len(lam_e), np.nan),
                 "mac": np.full(len(lam_e), np.nan), "error": str(err).splitlines()[0]}

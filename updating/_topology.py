@@ -98,6 +98,7 @@ def halves(model: Model, pid: int) -> list[tuple[np.ndarray, str]]:
     if low.all() or not low.any():
         return []
     name = "xyz"[axis]
+    cut = 0.0 if abs(cut) < 1e-9 * np.ptp(centre[:, axis]) else cut  # the median of a symmetric group: 0, not 1e-17
     return [(ids[low], f"pid {pid}, {name} ≤ {cut:.3g} m"), (ids[~low], f"pid {pid}, {name} > {cut:.3g} m")]
 
 
