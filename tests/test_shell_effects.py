@@ -134,3 +134,33 @@ def test_relative_to_carries_the_change_onto_the_model(panel):
         warnings.simplefilter("always")
         relative_to(panel, ModalData(dmg_test.frequencies_hz[:6], dmg_test.shapes[:, :6], sensors), ref_test)
     assert any("reference modes [7, 8]" in str(w.message) for w in caught)
+
+
+def test_seam_springs_per_unit_length_on_a_barrel():
+    """A frame-to-skin seam of the small barrel: candidates along every frame, each grid's
+    share half the distance to its neighbours (the run's shares sum to its length between
+    the end grids' outer half-spans), springs = value × share, and a released seam softens
+    the barrel while the reference (slightly softer than rigid) hardly does."""
+    from benchmarks import fuselage
+    from updating._effects import SEAM_GRIDS, Seam
+
+    model = jaxfem.build_model(read_bdf_text(fuselage.barrel_bdf(3000)))
+    seams = [s for s in Seam.candidates(model) if s.pids == (101, 201)]
+    assert seams and all(len(s.nodes) <= SEAM_GRIDS for s in seams)
+    seam = next(s for s in seams if len(s.nodes) == SEAM_GRIDS)
+    xyz = np.asarray(model.xyz)[model.node_index(list(seam.nodes))]
+    gaps = np.linalg.norm(np.diff(xyz, axis=0), axis=1)
+    shares = seam.shares(model)
+    np.testing.assert_allclose(shares[1:-1], 0.5 * (gaps[:-1] + gaps[1:]), rtol=1e-12)
+    ref = seam.at_reference(model, [10.0])
+    extended = ref.apply(model)
+    new = np.isin(extended.bushes.ids, np.setdiff1d(extended.bushes.ids, model.bushes.ids))
+    k = np.asarray(extended.bushes.k)[new]
+    np.testing.assert_allclose(np.sort(k[:, 0][k[:, 0] > 0]), np.sort(ref.k_trans * shares), rtol=1e-12)
+    np.testing.assert_allclose(np.sort(k[:, 3][k[:, 3] > 0]), np.sort(ref.k_rot * shares), rtol=1e-12)
+    f = [np.asarray(jaxfem.frequencies_hz(jaxfem.modes(m, 12)[0]))[6:] for m in
+         (model, extended, ref.updated(np.log([1e-4, 1e-4])).apply(model))]
+    assert np.max(np.abs(f[1] / f[0] - 1)) < 0.005  # the reference: almost rigid
+    assert np.max(np.abs(f[2] / f[0] - 1)) > 0.01 and np.all(f[2] <= f[0] * (1 + 1e-9))  # released: softer
+    with pytest.raises(ValueError, match="name the shell group and the beam group"):
+        Seam(nodes=seam.nodes, pids=(101,))

@@ -36,6 +36,7 @@ from ._effects import (
     GroupMass,
     GroupStiffness,
     Joint,
+    Seam,
     PatchStiffness,
 )
 from ._extension import Extension, extension
@@ -192,9 +193,9 @@ def localised_grids(model: Model, screen: Screen, node_scores: dict[int, float],
 
 
 def region_structures(model: Model, region: list[int], node_score: dict, kinds, n: int) -> list[AbstractEffect]:
-    """Joints (RBE2 groups, grids shared by two groups) and supports with a grid in the
+    """Joints (RBE2 groups, grids shared by two groups), seams and supports with a grid in the
     localised ``region`` or scoring high there, best first, at most ``n``."""
-    effects = [e for kind in (Joint, BoundarySpring) if kind.kind in kinds for e in kind.candidates(model)]
+    effects = [e for kind in (Joint, Seam, BoundarySpring) if kind.kind in kinds for e in kind.candidates(model)]
     inside, dep = set(region), masters(model)
     score = {e: (any(k in inside or dep.get(k) in inside for k in e.nodes), max(node_score.get(k, 0.0) for k in e.nodes))
              for e in effects}

@@ -86,7 +86,7 @@ from ._parameters import Options, Parameter, ParameterSet
 from ._ray import fit_candidates_ray
 from ._reduced import Bases
 from ._report import json_number, rms_pct
-from ._residuals import evaluate, rows
+from ._residuals import evaluate
 from ._result import Iteration, UpdateResult
 from ._solve import build_problem, update
 from ._topology import total_mass
@@ -195,8 +195,7 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     elem_b, node_b = residual_forces(model, np.asarray(nominal_problem.lam_e), np.asarray(nominal_problem.phi_e), C)
     say(f"localising the error (sensitivity of every element at the nominal model, {elapsed()})")
     nominal_screen = Screen.at(nominal_problem, np.zeros(n_b), model, params, f_e, kinds=("k", "m"))
-    eps = rows(jnp.zeros(n_b), nominal_problem, evaluate(jnp.zeros(n_b), nominal_problem))["eigenvector"]
-    chi2_shape = float(jnp.sum(eps ** 2)) / sigma2 / (ne * ns)
+    chi2_shape = float(np.sum(nominal_screen.r[ne:] ** 2)) / sigma2 / (ne * ns)  # the rows: eigenvalues, then shapes
     if chi2_shape < SHAPE_SIGNAL:  # the expanded shapes are noise: their residual forces point nowhere
         say(f"residual forces left out of the region: the shapes fit within noise (χ² per row {chi2_shape:.2f})")
     k, m = nominal_screen.element_reduction("k"), nominal_screen.element_reduction("m")

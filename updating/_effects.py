@@ -487,6 +487,28 @@ def _rigid_note(effect: Joint | BoundarySpring, reference: AbstractEffect | None
     return []
 
 
+def _release(model: Model, nodes, pids, k_trans: float, k_rot: float, shares=None) -> Model:
+    """Each grid of ``nodes`` released into two bushes (translations ``k_trans``, rotations
+    ``k_rot``, each × the grid's share, 1 by default): an RBE2-dependent grid is released
+    and held to its master; a grid shared by groups gets a coincident new grid for the
+    elements of ``pids[1:]``."""
+    dep = masters(model)
+    for node, share in zip(nodes, np.ones(len(nodes)) if shares is None else shares):
+        master = dep.get(node)
+        if master is None:  # a grid shared by two groups: the second group gets its own grid
+            model, new = edit.add_grid(model, model.xyz[model.node_index([node])[0]])
+            side = model.element_ids(pids=pids[1:])
+            model = edit.reconnect(model, side.tolist(), node, new)
+            a, b = node, new
+        else:  # an RBE2-dependent grid becomes independent, held by springs
+            model = edit.release(model, node)
+            a, b = master, node
+        # translations and rotations: two bushes, two factors; the springs at the released grid
+        model = edit.add_bush(model, a, b, [k_trans * share] * 3 + [0.0] * 3, s=1.0)[0]
+        model = edit.add_bush(model, a, b, [0.0] * 3 + [k_rot * share] * 3, s=1.0)[0]
+    return model
+
+
 class Joint(AbstractAddedElements):
     """A rigid connection made flexible: 6-DoF springs (two CBUSHes, translations and
     rotations) located at the released grid. At an RBE2-dependent grid the grid is
@@ -532,22 +554,7 @@ class Joint(AbstractAddedElements):
         return out
 
     def add_to(self, model: Model) -> Model:
-        kt, kr = [self._need("k_trans")] * 3, [self._need("k_rot")] * 3
-        dep = masters(model)
-        for node in self.nodes:
-            master = dep.get(node)
-            if master is None:  # a grid shared by two groups: the second group gets its own grid
-                model, new = edit.add_grid(model, model.xyz[model.node_index([node])[0]])
-                side = model.element_ids(pids=self.pids[1:])
-                model = edit.reconnect(model, side.tolist(), node, new)
-                a, b = node, new
-            else:  # an RBE2-dependent grid becomes independent, held by springs
-                model = edit.release(model, node)
-                a, b = master, node
-            # translations and rotations: two bushes, two factors; the springs at the released grid
-            model = edit.add_bush(model, a, b, kt + [0.0] * 3, s=1.0)[0]
-            model = edit.add_bush(model, a, b, [0.0] * 3 + kr, s=1.0)[0]
-        return model
+        return _release(model, self.nodes, self.pids, self._need("k_trans"), self._need("k_rot"))
 
     def at_reference(self, model: Model, f_test_hz) -> Joint:
         """Slightly flexible (:func:`~updating._topology.joint_reference` of the released side)."""
@@ -565,6 +572,113 @@ class Joint(AbstractAddedElements):
         s = np.broadcast_to(np.asarray(sd, float), (2,))
         return (f"make the {self.where()} a flexible joint: k_rot = {spread(self.k_rot, s[1], 'N·m/rad')}, "
                 f"k_trans = {spread(self.k_trans, s[0], 'N/m')}")
+
+
+SEAM_GRIDS = 5  # grids per seam candidate: a seam line is offered in runs of this many
+
+
+class Seam(AbstractAddedElements):
+    """A seam or fastener line made flexible: the grids that a beam group (a frame, a
+    stringer; ``pids[1]``) shares with a shell group (the skin; ``pids[0]``, which keeps
+    them) along a line, each released into springs of a stiffness per unit length × the
+    grid's share of the line (half the distance to each neighbour on it). Values:
+    ``k_trans`` (N/m per m of seam) on translations, ``k_rot`` (N·m/rad per m) on rotations."""
+
+    nodes: tuple[int, ...] = ids_field()
+    pids: tuple[int, ...] = ids_field()
+    label: str = label_field()
+    k_trans: float | None = value_field()
+    k_rot: float | None = value_field()
+
+    kind = "seam"
+    value_names = ("k_trans", "k_rot")
+    scales = "k"
+    scan = tuple((t, t) for t in SCAN)
+    prior_sd = (3.0, 3.0)
+
+    def __check_init__(self):
+        self._check_nodes()
+        if len(self.pids) != 2:
+            raise ValueError(f"seam at grids {list(self.nodes)}: name the shell group and the beam group, "
+                             "e.g. seam:node=1001-1005;pids=101,201 (the beams are released)")
+
+    @classmethod
+    def candidates(cls, model: Model) -> list[Seam]:
+        """Every line of grids a beam group shares with a shell group, in runs of
+        :data:`SEAM_GRIDS` along the beams."""
+        out = []
+        shells = [(model.quads.pids, model.quads.nodes), (model.trias.pids, model.trias.nodes)]
+        shell_rows = {int(p): set() for pids, _ in shells for p in pids}
+        for pids, nodes in shells:
+            for p, row in zip(pids, nodes):
+                shell_rows[int(p)].update(int(r) for r in row if r >= 0)
+        b = model.beams
+        for bp in sorted({int(p) for p in b.pids}):
+            ends = np.asarray(b.nodes)[np.asarray(b.pids) == bp][:, :2]
+            for sp, rows in sorted(shell_rows.items()):
+                edges = [(int(i), int(j)) for i, j in ends if int(i) in rows and int(j) in rows]
+                for line in _chains(edges):
+                    ids = [int(model.node_ids[r]) for r in line]
+                    for k in range(0, len(ids), SEAM_GRIDS):
+                        run = tuple(ids[k:k + SEAM_GRIDS])
+                        out.append(cls(nodes=run, pids=(sp, bp),
+                                       label=f"seam of pid {bp} on pid {sp}, grids {run[0]}–{run[-1]}"))
+        return out
+
+    def shares(self, model: Model) -> np.ndarray:
+        """Each grid's length of seam (m): half the distance to each neighbour on the line."""
+        b, xyz = model.beams, np.asarray(model.xyz)
+        rows = set(model.node_index(list(self.nodes)).tolist())
+        shell = {int(r) for blk in (model.quads, model.trias) for p, row in zip(blk.pids, blk.nodes)
+                 if int(p) == self.pids[0] for r in row if r >= 0}
+        ends = np.asarray(b.nodes)[np.asarray(b.pids) == self.pids[1]][:, :2]
+        out = []
+        for r in model.node_index(list(self.nodes)):
+            near = [j if i == r else i for i, j in ends if r in (i, j) and {i, j} <= shell | rows]
+            out.append(0.5 * sum(np.linalg.norm(xyz[n] - xyz[r]) for n in near))
+        return np.asarray(out)
+
+    def add_to(self, model: Model) -> Model:
+        return _release(model, self.nodes, self.pids, self._need("k_trans"), self._need("k_rot"), self.shares(model))
+
+    def at_reference(self, model: Model, f_test_hz) -> Seam:
+        """A joint's reference (:func:`~updating._topology.joint_reference` of the beams)
+        per unit of the mean share: slightly softer than rigid."""
+        side = [e for n in self.nodes for e, p in elements_at(model, n).items() if p == self.pids[1]]
+        share = float(np.mean(self.shares(model)))
+        if share <= 0:
+            raise ValueError(f"seam at grids {list(self.nodes)}: no beam of pid {self.pids[1]} runs along "
+                             f"them on the shells of pid {self.pids[0]}")
+        return replace(self, **{k: v / share for k, v in joint_reference(model, self.nodes, side).items()})
+
+    def plausibility(self, total_mass: float, reference: AbstractEffect | None = None) -> list[str]:
+        return _rigid_note(self, reference)
+
+    def advice(self, sd) -> str:
+        s = np.broadcast_to(np.asarray(sd, float), (2,))
+        return (f"make the {self.where()} flexible: k_rot = {spread(self.k_rot, s[1], 'N·m/rad per m')}, "
+                f"k_trans = {spread(self.k_trans, s[0], 'N/m per m')}")
+
+
+def _chains(edges: list[tuple[int, int]]) -> list[list[int]]:
+    """The connected lines of ``edges`` (grid rows), each in order along the line (a ring
+    from its lowest row)."""
+    nbr: dict[int, list[int]] = {}
+    for i, j in edges:
+        nbr.setdefault(i, []).append(j)
+        nbr.setdefault(j, []).append(i)
+    seen, out = set(), []
+    for start in sorted(nbr, key=lambda r: (len(nbr[r]) != 1, r)):  # line ends first
+        if start in seen:
+            continue
+        line, prev, cur = [], None, start
+        while cur is not None and cur not in seen:
+            seen.add(cur)
+            line.append(cur)
+            nxt = [n for n in nbr[cur] if n != prev and n not in seen]
+            prev, cur = cur, (nxt[0] if nxt else None)
+        out.append(line)
+    return out
 
 
 class BoundarySpring(AbstractAddedElements):
@@ -670,7 +784,7 @@ class AddedMass(AbstractAddedElements):
 
 
 _TYPES: dict[str, type[AbstractEffect]] = {t.kind: t for t in (
-    GroupStiffness, GroupMass, Joint, AddedMass, BoundarySpring, FrequencyDependentStiffness, *PATCH_KINDS)}
+    GroupStiffness, GroupMass, Joint, Seam, AddedMass, BoundarySpring, FrequencyDependentStiffness, *PATCH_KINDS)}
 KINDS = tuple(_TYPES)
 
 
@@ -697,7 +811,8 @@ def parse_effect(spec: str) -> AbstractEffect:
     ``joint:node=3007;pids=21,22``, ``stiffness:pid=41``, ``mass:eids=201-205``,
     ``added_mass:node=2015``, ``boundary_spring:node=1``,
     ``frequency_dependent_stiffness:pid=41``, ``delamination:node=1234;radius=0.03``,
-    ``patch_stiffness:node=1234;radius=0.05;part=bending`` (radius in m)."""
+    ``patch_stiffness:node=1234;radius=0.05;part=bending`` (radius in m),
+    ``seam:node=1001-1005;pids=101,201``."""
     kind, _, target = spec.partition(":")
     if kind not in KINDS or not target:
         raise ValueError(f"effect {spec!r}: write KIND:TARGET with KIND one of {KINDS}, "
