@@ -168,21 +168,24 @@ STIFF = 100.0  # a released rigid connection or support is held this many times 
 
 def localised_grids(model: Model, screen: Screen, node_scores: dict[int, float], n: int,
                     fraction: float) -> list[int]:
-    """The localised region: the grids of the property groups (or halves) whose stiffness
-    or mass screens at least ``fraction`` of the best (at most three; their grids best
-    scoring first), then the grids scoring at least ``fraction`` of the best; those that
-    carry structural elements and no SPC, at most ``n``. (Grid scores alone favour grids
-    that move much, such as tips.)"""
+    """The localised region: the best-scoring grids of the property groups (or halves)
+    whose stiffness or mass screens at least ``fraction`` of the best (at most three),
+    ``n``/2 of them, then the grids scoring at least ``fraction`` of the best, then the
+    groups' other grids; those that carry structural elements and no SPC, at most ``n``.
+    (Grid scores alone favour grids that move much, such as tips; a large group alone
+    would crowd out a high-scoring grid elsewhere: a missing mass on a floor when the
+    skin's stiffness screens best.)"""
     groups = []
     for kind in (GroupStiffness, GroupMass):
         for effect in kind.candidates(model):
             ids = effect.elements(model)
             groups.append((float(reduction(screen.r, screen.column(effect.scales, ids), screen.J_b, joint=True)), ids))
     top_group = max((g[0] for g in groups), default=0.0)
-    grids = sorted({g for rho, ids in sorted(groups, key=lambda g: -g[0])[:3] if rho >= fraction * top_group
-                    for g in element_grids(model, ids)}, key=lambda k: (-node_scores.get(k, 0.0), k))
+    in_groups = sorted({g for rho, ids in sorted(groups, key=lambda g: -g[0])[:3] if rho >= fraction * top_group
+                        for g in element_grids(model, ids)}, key=lambda k: (-node_scores.get(k, 0.0), k))
     top = max(node_scores.values(), default=0.0)
-    grids += sorted((k for k in node_scores if node_scores[k] >= fraction * top), key=lambda k: -node_scores[k])
+    high = sorted((k for k in node_scores if node_scores[k] >= fraction * top), key=lambda k: -node_scores[k])
+    grids = in_groups[: n // 2] + high + in_groups[n // 2:]
     region = []
     for k in dict.fromkeys(grids):
         if len(region) == n:
