@@ -9,7 +9,8 @@ changed model are sought in the span of
   each parameter's change exerts on the paired modes, ``(K − σM)⁻¹ (∂_i K − λ_j ∂_i M) φ_j``
   (the first-order modal expansion with its static correction, eq. 3.23 with eq. 3.28);
 - along a candidate's parameters (a local change): the static responses to unit loads at
-  every DoF the change touches, ``(K − σM)⁻¹ e_d`` (attachment modes). A change ΔK of any
+  every DoF the change touches, ``(K − σM)⁻¹ e_d`` (attachment modes), and one step of
+  inverse iteration on them, ``(K − σM)⁻¹ M (K − σM)⁻¹ e_d``. A change ΔK of any
   size on those DoFs changes the static flexibility only in their span (Woodbury), so
   these hold a joint released or a patch delaminated, not only a small step. A candidate
   touching more than ``ATTACH_MAX`` DoFs (a whole group) gets the first-order columns.
@@ -102,7 +103,8 @@ class Bases:
             unit = np.zeros((len(self.phi), len(touched)))
             unit[touched, np.arange(len(touched))] = 1.0
             static = np.asarray(self._solve(unit))
-            own = np.concatenate([static, np.asarray(self._solve(np.asarray(self._mass(theta, p, jnp.asarray(static)))))], 1)
+            dynamic = np.asarray(self._solve(np.asarray(self._mass(theta, p, jnp.asarray(static)))))
+            own = np.concatenate([static, dynamic], axis=1)
         else:
             own = self._corrections(p, theta, tangents)
         V = np.concatenate([self.common, own], axis=1)
