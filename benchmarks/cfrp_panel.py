@@ -420,17 +420,14 @@ def measure(sim: dict, noise: float, seed: int, *, control: bool = False) -> tup
     return healthy, damaged
 
 
-TRUTH = 0.0125  # m, element size of the truth of the modal-change case (half the model's)
-
-
 def modal_change(noise_f: float = 1e-4, noise_s: float = 0.01, seed: int = 0, *, control: bool = False,
-                 n_modes: int = N_MODES):
+                 n_modes: int = N_MODES, element_size: float = COARSE):
     """The delamination as an engineer would measure it with a scanning vibrometer, for
     :func:`updating.diagnose` on the change between two states (``--reference``).
 
-    Truth: the panel meshed at :data:`TRUTH` (half the model's element size; mesh alone
-    moves the frequencies by 0.2–4 %), healthy and with the delamination of
-    :data:`DAMAGE_CENTRE`, :data:`DAMAGE_RADIUS` (its own PCOMP, G1Z and G2Z −90 %). Test:
+    Truth: the panel meshed at half the model's ``element_size`` (12.5 mm for the default
+    :data:`COARSE`; mesh alone moves the frequencies by 0.2–4 %), healthy and with the
+    delamination of :data:`DAMAGE_CENTRE`, :data:`DAMAGE_RADIUS` (its own PCOMP, G1Z and G2Z −90 %). Test:
     out-of-plane (component 3) at every grid of the coarse model's base plate off the clamp
     that is a grid of the truth too; the ``n_modes`` modes in :data:`F_BAND` with the
     largest piezo sensor peaks of the healthy truth (as :func:`simulate`); relative noise
@@ -446,13 +443,13 @@ def modal_change(noise_f: float = 1e-4, noise_s: float = 0.01, seed: int = 0, *,
     from identification import ModalData, Sensors, observation_matrix
     from identification._patches import shell_centres
 
-    model = build(COARSE)
-    truth = [build(TRUTH), build(TRUTH, (*DAMAGE_CENTRE, DAMAGE_RADIUS))]
+    model = build(element_size)
+    truth = [build(element_size / 2), build(element_size / 2, (*DAMAGE_CENTRE, DAMAGE_RADIUS))]
     xyz, ids = np.asarray(model.xyz), np.asarray(model.node_ids)
     t_xyz = np.asarray(truth[0].xyz)
     plate = np.flatnonzero((np.abs(xyz[:, 2]) < 1e-9) & (xyz[:, 0] > 1e-9))
     dist = np.linalg.norm(xyz[plate, None, :] - t_xyz[None, :, :], axis=2)
-    same = dist.min(axis=1) < 1e-3 * COARSE
+    same = dist.min(axis=1) < 1e-3 * element_size
     grids, t_grids = ids[plate[same]], np.asarray(truth[0].node_ids)[dist[same].argmin(axis=1)]
     components = np.full(len(grids), 3)
     rng = np.random.default_rng(seed)

@@ -259,12 +259,13 @@ def group_candidates(model: Model, aug: Model, params: tuple[Parameter, ...], sc
 
 def node_candidates(aug: Model, dormant, screen: Screen) -> list[Candidate]:
     """Added mass and ground spring at each localised grid (the dormant elements of ``aug``),
-    to start at the linearised step's amplitude (× the reference, within e^±3) or at e^-3."""
+    to start at the best of the linearised step's amplitude (× the reference, within e^±3)
+    and the kind's scan grid (a heavy mass is far from linear: its own mode enters the band)."""
     out = []
     for ref, ids in dormant:
         g = screen.column(ref.scales, ids)
         step = float(np.log(np.clip(screen.step(g)[0], np.exp(-3.0), np.exp(3.0))))
-        c = Candidate(ref, extension(aug, **{f"{ref.scales}_add": ids}), scan=(step, -3.0))
+        c = Candidate(ref, extension(aug, **{f"{ref.scales}_add": ids}), scan=(step,) + tuple(ref.scan))
         c.screen = float(reduction(screen.r, g, screen.J_b)[0])
         out.append(c)
     return out

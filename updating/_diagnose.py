@@ -93,6 +93,7 @@ from ._topology import total_mass
 
 
 SHAPE_SIGNAL = 2.0  # shape χ² per row at the nominal model below which residual forces do not define the region
+CLIMB_SHARE = 0.5  # a patch kind is refined when it takes this share of the best candidate's cost reduction
 
 
 @dataclass(frozen=True)
@@ -385,9 +386,11 @@ def _refine_places(fitted, solver, fits: Fits, problem, aug: Model, cands: list[
 def _refine_patches(fitted, model: Model, aug: Model, short: list[Candidate], base: dict,
                     f_e) -> list[tuple[Candidate, Candidate]]:
     """Hill-climb of the two best patch kinds (kind and part) that fit better than the
-    baseline: the best fitted patch is fitted about each neighbouring shell grid and with
-    the next radius up and down the ladder, and moves while one fits better (centre
-    refined between neighbours, radius chosen by the data). Fits join ``short``."""
+    baseline and take at least half the cost reduction of the best candidate of any kind
+    (a patch far behind a mass or a joint is not refined: on the 33k barrel each climb
+    costs tens of fits): the best fitted patch is fitted about each neighbouring shell grid
+    and with the next radius up and down the ladder, and moves while one fits better
+    (centre refined between neighbours, radius chosen by the data). Fits join ``short``."""
     def key(e):
         return e.kind, getattr(e, "part", ""), e.nodes, round(e.radius, 9)
 
@@ -409,10 +412,12 @@ def _refine_patches(fitted, model: Model, aug: Model, short: list[Candidate], ba
             out.append(done[key(patch)])
         return out
 
+    best = min((c.result["cost"] for c in short if np.isfinite(c.result["cost"])), default=base["cost"])
+    bar = base["cost"] - CLIMB_SHARE * (base["cost"] - best)
     best_of: dict = {}
     for c in done.values():
         k = key(c.reference)[:2]
-        if c.result["cost"] < base["cost"] and (k not in best_of or c.result["cost"] < best_of[k].result["cost"]):
+        if c.result["cost"] < bar and (k not in best_of or c.result["cost"] < best_of[k].result["cost"]):
             best_of[k] = c
     return [m for best in sorted(best_of.values(), key=lambda c: c.result["cost"])[:2]
             for m in _climb(best, fitted_neighbours)]

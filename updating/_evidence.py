@@ -45,6 +45,7 @@ from ._residuals import Problem, rows
 BASELINE_SD = 3.0  # prior σ of the engineer's log-factors (the fits' ridge, see diagnose)
 DECISIVE = np.log(20.0)  # ln Bayes factor an effect needs over the baseline ("strong", Kass & Raftery 1995)
 TIE = 1.0  # ln Bayes factor below which two places of one kind explain the data equally
+REFINE = (-1.0, -0.5, 0.5, 1.0)  # log-factor steps about the best point of a one-factor scan
 UNEXPLAINED_CHI2 = 4.0  # χ² per row above which the baseline does not explain the data (residuals 2× noise)
 
 
@@ -103,8 +104,14 @@ def scan_start(fits: Fits, problem: Problem, ext: Extension, theta_b: np.ndarray
                solver: AbstractEigensolver = Direct()) -> np.ndarray:
     """Best starting θ of an effect on a coarse grid: a fit from the reference alone can
     stall where modes swap partners on the way (a much softer joint, a heavy added mass,
-    a strong frequency law)."""
-    costs = scan_costs(fits, problem, ext, theta_b, grid, solver)
+    a strong frequency law). A grid of one factor is then refined about its best point
+    (:data:`REFINE`): a heavy mass brings its own mode into the band, and the valley where
+    every mode pairs can be narrower than the grid's steps."""
+    costs = list(scan_costs(fits, problem, ext, theta_b, grid, solver))
+    best = grid[int(np.argmin(costs))]
+    if np.ndim(best) == 0:
+        grid = list(grid) + [best + d for d in REFINE]
+        costs += list(scan_costs(fits, problem, ext, theta_b, grid[len(costs):], solver))
     return np.atleast_1d(np.asarray(grid[int(np.argmin(costs))], float))
 
 
