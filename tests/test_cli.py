@@ -24,6 +24,16 @@ def test_modes_json_matches_library(tmp_path):
     assert "f [Hz]" in result.output
 
 
+def test_json_goes_into_a_new_directory_and_a_directory_is_refused_first(tmp_path):
+    out = tmp_path / "new" / "deeper" / "modes.json"
+    result = runner.invoke(app, ["modes", "tests/data/frame_free.bdf", "-n", "2", "--json", str(out)])
+    assert result.exit_code == 0, result.output
+    assert len(json.loads(out.read_text())["frequencies_hz"]) == 2
+    result = runner.invoke(app, ["modes", "tests/data/frame_free.bdf", "-n", "2", "--json", str(tmp_path)])
+    assert result.exit_code == 2 and "is a directory" in result.output
+    assert "f [Hz]" not in result.output  # refused before the solve
+
+
 def test_malformed_model_names_the_field(tmp_path):
     bad = tmp_path / "bad.bdf"
     bad.write_text("GRID,1,,0.,0.,abc\n")

@@ -37,7 +37,7 @@ def appropriate(
     candidates: Annotated[str, typer.Option("--candidates", metavar="GRID:C,...",
                                             help="candidate exciter positions, e.g. 101:3,205:3")],
     n_exciters: Annotated[int, typer.Option("--exciters", help="number of exciters used together")],
-    json_out: Annotated[Path, typer.Option("--json", help="write the ranking as JSON")],
+    json_out: Annotated[Path, typer.Option("--json", dir_okay=False, help="write the ranking as JSON")],
     n_modes: Annotated[int, typer.Option("--modes", help="modes to appropriate (the lowest)")] = 6,
     method: Annotated[str, typer.Option("--method", help="thesis, lewis_wrisley, asher or hunt")] = "thesis",
     sensors: Annotated[str | None, typer.Option("--sensors", metavar="GRID:C,...",

@@ -18,7 +18,7 @@ ModelArg = Annotated[Path, typer.Argument(metavar="MODEL.bdf", exists=True, dir_
                                           help="Nastran bulk data (SI units)")]
 TestArg = Annotated[Path, typer.Argument(metavar="TEST.uff", exists=True, dir_okay=False,
                                          help="universal file with the measured modes (dataset 55)")]
-JsonOut = Annotated[Path, typer.Option("--json", help="write results as JSON")]
+JsonOut = Annotated[Path, typer.Option("--json", dir_okay=False, help="write results as JSON")]
 PlotsOut = Annotated[Path | None, typer.Option("--plots", help="directory for PNG plots")]
 SolverOpt = Annotated[str | None, typer.Option(
     "--solver", metavar="dense|sparse",
@@ -43,8 +43,12 @@ def echoed_warnings() -> Iterator[None]:
 
 
 def write_json(path: Path, data: dict) -> None:
-    """``data`` as indented JSON (NaN and inf as null), and say so."""
-    path.write_text(json.dumps(json_safe(data), indent=2, allow_nan=False))
+    """``data`` as indented JSON (NaN and inf as null), its directory made if missing, and say so."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(json_safe(data), indent=2, allow_nan=False))
+    except OSError as err:
+        fail(f"cannot write {path}: {err}")
     typer.echo(f"wrote {path}")
 
 

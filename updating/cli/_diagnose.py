@@ -156,7 +156,7 @@ def diagnosis(model, test, params, *, model_name: str, test_name: str, json_out:
 def diagnose(
     model_path: ModelArg,
     test_path: TestArg,
-    json_out: Annotated[Path, typer.Option("--json", help="write diagnosis.json")],
+    json_out: Annotated[Path, typer.Option("--json", dir_okay=False, help="write diagnosis.json")],
     report: Annotated[Path | None, typer.Option("--report", help="directory for report.html and its PNG plots")] = None,
     params_path: Annotated[Path | None, typer.Option("--params", metavar="PARAMS.toml", exists=True, dir_okay=False,
                                                      help="the engineer's updating parameters (the baseline)")] = None,

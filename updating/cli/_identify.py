@@ -13,7 +13,7 @@ from ._common import check_plots, echoed_warnings, fail, read_dataset, write_jso
 def identify(
     frf_path: Annotated[Path, typer.Argument(metavar="FRF.uff", exists=True, dir_okay=False,
                                              help="measured FRFs (UFF 58), with coherence if available")],
-    json_out: Annotated[Path, typer.Option("--json", help="write the identified modes and the diagram as JSON")],
+    json_out: Annotated[Path, typer.Option("--json", dir_okay=False, help="write the identified modes and the diagram as JSON")],
     plots: Annotated[Path | None, typer.Option("--plots", help="directory for the stabilisation diagram (PNG)")] = None,
     modes_out: Annotated[Path | None, typer.Option("--uff", help="write the identified modes as UFF 55")] = None,
     fmin: Annotated[float | None, typer.Option("--fmin", help="lower end of the band, Hz")] = None,

@@ -56,7 +56,7 @@ def _print_table(result: dict) -> None:
 def modes(
     model: Annotated[Path, typer.Argument(exists=True, dir_okay=False, help="Nastran bulk data (SI units)")],
     n: Annotated[int, typer.Option("-n", "--n-modes", help="number of modes")] = 10,
-    json_out: Annotated[Path | None, typer.Option("--json", help="write results as JSON")] = None,
+    json_out: Annotated[Path | None, typer.Option("--json", dir_okay=False, help="write results as JSON")] = None,
     solver: SolverOpt = None,
 ) -> None:
     """Natural frequencies of a bulk-data model."""

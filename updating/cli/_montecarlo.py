@@ -84,7 +84,7 @@ def _progress(p: dict) -> None:
 def montecarlo(
     config: Annotated[Path, typer.Argument(metavar="CONFIG.toml", exists=True, dir_okay=False,
                                            help="the study: [study], [errors], [[parameter]], [options] (docs/montecarlo.md)")],
-    json_out: Annotated[Path, typer.Option("--json", help="write the statistics per cell as JSON")],
+    json_out: Annotated[Path, typer.Option("--json", dir_okay=False, help="write the statistics per cell as JSON")],
     plots: PlotsOut = None,
     out: Annotated[Path | None, typer.Option(
         "--out", help="directory of the finished chunks, from which a rerun resumes "
