@@ -190,19 +190,7 @@ def finalize_dofs(model: Model) -> Model:
 
 def _sparse_block(a: ElementMatrix, dofs: np.ndarray) -> scipy.sparse.csc_matrix:
     """Rows and columns ``dofs`` of an element-stacked matrix as a SciPy CSC matrix (no n × n array)."""
-    pos = np.full(a.n + 1, -1, dtype=np.int64)
-    pos[dofs] = np.arange(len(dofs))
-    rows, cols, vals = [], [], []
-    for blk, idx in zip(a.blocks, a.indices):
-        p = pos[idx]
-        r, c = np.broadcast_arrays(p[:, :, None], p[:, None, :])
-        keep = (r >= 0) & (c >= 0)
-        rows.append(r[keep])
-        cols.append(c[keep])
-        vals.append(np.asarray(blk)[keep])
-    n = len(dofs)
-    return scipy.sparse.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                                   shape=(n, n)).tocsc()
+    return a.tocsr()[dofs][:, dofs].tocsc()
 
 
 def _check_massless_stiffness(K: ElementMatrix, massless: np.ndarray, labels: np.ndarray) -> None:

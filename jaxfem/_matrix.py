@@ -13,6 +13,7 @@ import abc
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+import scipy.sparse
 from jaxtyping import Array, Float, Int
 
 
@@ -103,6 +104,20 @@ class ElementMatrix(AbstractSymmetricMatrix):
             local = jnp.einsum("eij,ej...->ei...", blk, xp[idx])
             out = out.at[idx].add(local)
         return out[: self.size]
+
+    def tocsr(self) -> scipy.sparse.csr_matrix:
+        """The matrix as SciPy CSR, on the host (concrete values only; no n × n array)."""
+        rows, cols, vals = [], [], []
+        for blk, idx in zip(self.blocks, self.indices):
+            idx = np.asarray(idx)
+            r, c = np.broadcast_arrays(idx[:, :, None], idx[:, None, :])
+            keep = (r < self.size) & (c < self.size)
+            rows.append(r[keep])
+            cols.append(c[keep])
+            vals.append(np.asarray(blk)[keep])
+        cat = lambda parts, dtype: np.concatenate(parts) if parts else np.zeros(0, dtype)  # noqa: E731
+        return scipy.sparse.coo_matrix((cat(vals, float), (cat(rows, np.int64), cat(cols, np.int64))),
+                                       shape=(self.size, self.size)).tocsr()
 
     def with_values(self, values):
         return ElementMatrix(

@@ -34,7 +34,7 @@ from ._evidence import with_extension
 from ._residuals import Problem, pair
 
 ATTACH_MAX = 400  # DoFs a candidate may touch for attachment columns; more: first-order columns
-BUCKET = 32  # a basis is padded to a multiple of this many columns (one compiled fit per size)
+WIDTHS = (64, 1.5, 32)  # a basis is padded to the next width of 64, then ×1.5 in multiples of 32 (one compiled fit per width)
 MASS_FLOOR = 1e-10  # basis directions of M-norm² below this share of the largest are dropped
 
 
@@ -60,10 +60,10 @@ def _touched(theta, problem: Problem, tangents):
     return jnp.sum(jax.lax.map(one, tangents), axis=0)
 
 
-def _mass_times(theta, problem: Problem, V):
-    """M(θ) V."""
-    _, M = jaxfem.assemble(problem.model(theta))
-    return M.matmul(V)
+def _mass(theta, problem: Problem):
+    """M(θ), element-stacked: compiled once for all candidates (their masks are arrays),
+    its products taken on the host (a compiled product would compile anew at every basis width)."""
+    return jaxfem.assemble(problem.model(theta))[1]
 
 
 class Bases:
@@ -74,7 +74,7 @@ class Bases:
     the engineer's log-factors and that 0."""
 
     def __init__(self, problem: Problem, theta_b):
-        self._loads, self._touched, self._mass = Compiled(_loads), Compiled(_touched), Compiled(_mass_times)
+        self._loads, self._touched, self._mass = Compiled(_loads), Compiled(_touched), Compiled(_mass)
         theta = jnp.asarray(theta_b, dtype=jnp.float64)
         lam, Phi, self._solve, _ = _modes(problem, theta, problem.model(theta))
         q = problem.n_model
@@ -99,18 +99,27 @@ class Bases:
         theta = jnp.asarray(np.concatenate([self.theta_b, theta_c]))
         tangents = jnp.asarray(np.eye(len(theta))[self.n_b:])
         touched = np.flatnonzero(np.asarray(self._touched(theta, p, tangents)))
+        M = self._mass(theta, p).tocsr()
         if len(touched) <= ATTACH_MAX:
             unit = np.zeros((len(self.phi), len(touched)))
             unit[touched, np.arange(len(touched))] = 1.0
             static = np.asarray(self._solve(unit))
-            dynamic = np.asarray(self._solve(np.asarray(self._mass(theta, p, jnp.asarray(static)))))
+            dynamic = np.asarray(self._solve(M @ static))
             own = np.concatenate([static, dynamic], axis=1)
         else:
             own = self._corrections(p, theta, tangents)
         V = np.concatenate([self.common, own], axis=1)
-        V = _orthonormal(V, V.T @ np.asarray(self._mass(theta, p, jnp.asarray(V))))
-        r = -(-V.shape[1] // BUCKET) * BUCKET
+        V = _orthonormal(V, V.T @ (M @ V))
+        r = _width(V.shape[1])
         return Reduced(jnp.asarray(np.pad(V, ((0, 0), (0, r - V.shape[1])))), jnp.arange(r) >= V.shape[1])
+
+
+def _width(columns: int) -> int:
+    """The padded width of a basis of ``columns`` (:data:`WIDTHS`: 64, 96, 160, 256, 384, 576, ...)."""
+    r, growth, multiple = WIDTHS
+    while r < columns:
+        r = -(-int(r * growth) // multiple) * multiple
+    return r
 
 
 def _orthonormal(V: np.ndarray, G: np.ndarray) -> np.ndarray:
