@@ -197,13 +197,22 @@ def localised_grids(model: Model, screen: Screen, node_scores: dict[int, float],
 
 def region_structures(model: Model, region: list[int], node_score: dict, kinds, n: int) -> list[AbstractEffect]:
     """Joints (RBE2 groups, grids shared by two groups), seams and supports with a grid in the
-    localised ``region`` or scoring high there, best first, at most ``n``."""
+    localised ``region`` or scoring high there, best first, at most ``n``; a joint or seam
+    sharing a grid with a better one is left out (:func:`augment` releases them all at once)."""
     effects = [e for kind in (Joint, Seam, BoundarySpring) if kind.kind in kinds for e in kind.candidates(model)]
     inside, dep = set(region), masters(model)
     score = {e: (any(k in inside or dep.get(k) in inside for k in e.nodes), max(node_score.get(k, 0.0) for k in e.nodes))
              for e in effects}
-    return sorted((e for e in effects if score[e][0] or score[e][1] > 0),
-                  key=lambda e: (not score[e][0], -score[e][1]))[:n]
+    chosen, released = [], set()
+    for e in sorted((e for e in effects if score[e][0] or score[e][1] > 0), key=lambda e: (not score[e][0], -score[e][1])):
+        if len(chosen) == n:
+            break
+        if e.kind != BoundarySpring.kind:  # a grid released twice would be held by the second release only
+            if released & set(e.nodes):
+                continue
+            released |= set(e.nodes)
+        chosen.append(e)
+    return chosen
 
 
 def augment(model: Model, nodes: list[int], structures: list[AbstractEffect], f_e):
