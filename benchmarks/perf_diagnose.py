@@ -117,13 +117,13 @@ def run_panel(control: bool = False, element_size: float | None = None, n_modes:
 BARREL_MASS = 20.0  # kg: the payload the barrel's model lacks
 
 
-def run_barrel(control: bool = False, n_dof: int = 33_000, kinds: tuple[str, ...] | None = None) -> dict:
+def run_barrel(control: bool = False, n_dof: int = 33_000, eigensolver: str = "auto") -> dict:
     """The EC 135-size barrel (``benchmarks.fuselage``) lacking a payload of
     :data:`BARREL_MASS` kg on a floor grid (the truth: the same mesh with one more CONM2
     card, read from its own text), or its control; 20 modes (6 suspension, 14 elastic) in
     y and z at 100 skin grids and in z at 20 floor grids, 0.1 % on frequencies and 1 % on
-    shape components; its row. ``kinds``: the effect kinds offered (default: all; at 33k
-    DoFs the sparse path leaves the frequency laws out)."""
+    shape components; its row. ``eigensolver``: the diagnosis' (``auto``: sparse at 33k
+    DoFs, which leaves the frequency laws out)."""
     import numpy as np
 
     from benchmarks import fuselage
@@ -143,7 +143,7 @@ def run_barrel(control: bool = False, n_dof: int = 33_000, kinds: tuple[str, ...
                                       np.concatenate([np.tile([2, 3], len(skin)), np.full(len(on_floor), 3)]))
     test = simulate_test(truth, sensors, 20, Noise(relative=0.01, frequency=0.002), jax.random.key(0), solver="sparse")
     start = time.perf_counter()
-    options = DiagnoseOptions(noise_freq=0.001, noise_shape=0.01, **({"kinds": kinds} if kinds else {}))
+    options = DiagnoseOptions(noise_freq=0.001, noise_shape=0.01, eigensolver=eigensolver)
     report = diagnose(model, test, options=options, progress=_progress).report
     seconds = time.perf_counter() - start
     top = report["effects"][0] if report["outcome"] == "effect" else None
