@@ -17,11 +17,3 @@ jax.config.update("jax_numpy_dtype_promotion", "strict")
 @pytest.fixture
 def key():
     return jax.random.key(0)
-
-
-def pytest_collection_modifyitems(items):
-    """The modules holding slow tests first (each kept whole, so that its module fixtures
-    are made once): pytest-xdist hands tests out in this order, and a long test started
-    last runs alone while the other worker idles."""
-    slow = {item.module for item in items if item.get_closest_marker("slow")}
-    items.sort(key=lambda item: item.module not in slow)
