@@ -1,7 +1,7 @@
-"""The diagnosis on shell structures, on data no model of the diagnosis produced
-(:mod:`benchmarks.perf_diagnose` at a size the suite affords; the benchmark runs it at
-33,000 DoFs): the barrel lacking a payload, its truth the bulk data with one more CONM2
-card, read on its own, and its control; the sparse eigensolver and the candidates fitted
+"""The diagnosis on shell structures (:mod:`benchmarks.perf_diagnose` at a size the suite
+affords; the benchmark runs it at 33,000 DoFs): the barrel lacking a payload, its truth
+the bulk data with one more CONM2 card, read on its own — modelled as the added-mass
+candidate is, so inside the model family — and its control; the sparse eigensolver and the candidates fitted
 on reduced models, as at 33k DoFs. The effect must rank first at the right grid with the
 held-out frequency error below twice the noise; the control must claim nothing.
 
