@@ -125,3 +125,23 @@ def test_sparse_path_matches_dense(laminate_plate):
         np.testing.assert_allclose(s[:10], d[:10], rtol=1e-6, atol=1e-9 * np.abs(d[:10]).max())
         scale = np.linalg.norm(d, axis=0)
         assert np.all(np.linalg.norm(s - d, axis=0) <= 0.02 * scale + 1e-12)
+
+
+def test_columns_do_not_depend_on_the_signs_of_a_second_solve(laminate_plate, monkeypatch):
+    """The screening solves the modes again: a solver returning some of them negated
+    (ARPACK does, between two calls) must not flip their eigenvector rows."""
+    from updating import _element_sensitivity
+
+    model, truth, sensors = laminate_plate
+    problem = _problem(model, truth, sensors, 10, "sparse")
+    ref = element_jacobian(problem, jnp.zeros(0), kinds=("m",))
+    modes = _element_sensitivity._modes
+
+    def negated(*args):
+        lam, phi, solve, sigma = modes(*args)
+        return lam, phi * np.where(np.arange(phi.shape[1]) % 2, -1.0, 1.0), solve, sigma
+
+    monkeypatch.setattr(_element_sensitivity, "_modes", negated)
+    got = element_jacobian(problem, jnp.zeros(0), kinds=("m",))
+    assert np.abs(ref.columns["m"][10:]).max() > 1e-6
+    np.testing.assert_allclose(got.columns["m"], ref.columns["m"], atol=1e-10 * np.abs(ref.columns["m"]).max())

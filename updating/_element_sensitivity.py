@@ -126,6 +126,10 @@ def element_jacobian(problem: Problem, theta, kinds=KINDS) -> ElementJacobian:
     G = scipy.sparse.csr_matrix(np.concatenate([g_lam, g_phi.reshape(len(r), ns * ne)], axis=1))
 
     modes = [int(i) for i in index[paired]]
+    # the paired modes signed as in the residual: a second solve may return any of them
+    # negated (ARPACK; or a tie for the largest component of a symmetric mode)
+    Phi = Phi.copy()
+    Phi[:, modes] *= np.where(np.sum((C @ Phi[:, modes]) * np.asarray(ev.phi_a)[:, paired], axis=0) < 0, -1.0, 1.0)
     Cphi = C @ Phi
     flex = solve(C.T).T - (Cphi / (lam - sigma)) @ Phi.T  # C [(K − σM)⁻¹ − Σ φφᵀ/(λ − σ)]: ns × n
     Phi_p = np.vstack([Phi, np.zeros((1, Phi.shape[1]))])  # padding index → 0
