@@ -98,7 +98,7 @@ def test_residual_forces_singular_expansion(frame, monkeypatch):
     for a, b in zip(once, twice):
         np.testing.assert_allclose([b[k] for k in sorted(a)], [a[k] for k in sorted(a)], rtol=1e-6)
     monkeypatch.setattr(localisation, "DENSE_FALLBACK_BELOW", 0)
-    with pytest.raises(ValueError, match="measured mode 1 .*singular"):
+    with pytest.raises(ValueError, match=r"measured mode \d+ \(column \d+ of phi_e\).*singular"):
         residual_forces(model, lam, twice_phi, twice_c)
 
 
@@ -130,3 +130,31 @@ def test_residual_forces_locate_panel_delamination():
     ranked = sorted(elements, key=elements.get, reverse=True)
     assert np.hypot(*(centre[ranked[0]][:2] - [0.15, 0.2])) < 0.06
     assert set(ranked[:4]) == delaminated
+
+
+def test_the_screen_leaves_out_the_shape_rows_of_modes_that_mix():
+    """Three test modes at four sensors; the third pairs with MAC 0.7: its shape rows hold a
+    large residual (modes mixed, beyond a linear step) that a decoy element would take.
+    The screen scores the element that explains every other row, and steps it to 1."""
+    from updating._candidates import Screen, _row_modes
+    from updating._element_sensitivity import ElementJacobian
+
+    ne, ns = 3, 4
+    row_mode = np.concatenate([np.arange(ne), np.tile(np.arange(ne), ns)])
+    rng = np.random.default_rng(1)
+    true = rng.normal(size=len(row_mode))
+    decoy = np.where((row_mode == 2) & (np.arange(len(row_mode)) >= ne), 5 * rng.normal(size=len(row_mode)), 0.0)
+    r = -true - decoy
+    f_e = np.array([10.0, 20.0, 30.0])
+
+    def screen(mac):
+        jac = ElementJacobian(r, {"m": np.stack([true, decoy], axis=1)}, {"m": np.array([1, 2])}, np.asarray(mac))
+        return Screen(r, jac, np.zeros((len(r), 0)), row_mode, f_e, 20.0)
+
+    every = screen([1.0, 0.99, 1.0]).element_reduction("m")
+    assert every[2] > 0.8 > 0.3 > every[1]  # on every row the decoy screens best
+    s = screen([1.0, 0.99, 0.7])
+    rho = s.element_reduction("m")
+    assert rho[1] == pytest.approx(1.0, abs=1e-12) and rho[2] == pytest.approx(0.0, abs=1e-12)
+    assert s.step(true[:, None])[0] == pytest.approx(1.0, abs=1e-12)
+    assert np.array_equal(_row_modes(type("P", (), {"phi_e": np.zeros((ns, ne))})()), row_mode)
