@@ -128,8 +128,8 @@ def test_sparse_path_matches_dense(laminate_plate):
 
 
 def test_columns_do_not_depend_on_the_signs_of_a_second_solve(laminate_plate, monkeypatch):
-    """The screening solves the modes again: a solver returning some of them negated
-    (ARPACK does, between two calls) must not flip their eigenvector rows."""
+    """The screen's full-length modes signed otherwise than the residual's (ARPACK returns
+    any of them negated from one call to the next) must not flip their eigenvector rows."""
     from updating import _element_sensitivity
 
     model, truth, sensors = laminate_plate
@@ -138,8 +138,8 @@ def test_columns_do_not_depend_on_the_signs_of_a_second_solve(laminate_plate, mo
     modes = _element_sensitivity._modes
 
     def negated(*args):
-        lam, phi, solve, sigma = modes(*args)
-        return lam, phi * np.where(np.arange(phi.shape[1]) % 2, -1.0, 1.0), solve, sigma
+        ev, lam, phi, solve, sigma = modes(*args)
+        return ev, lam, phi * np.where(np.arange(phi.shape[1]) % 2, -1.0, 1.0), solve, sigma
 
     monkeypatch.setattr(_element_sensitivity, "_modes", negated)
     got = element_jacobian(problem, jnp.zeros(0), kinds=("m",))

@@ -86,6 +86,9 @@ class Candidate:
 # the screening Jacobian
 
 
+MAC_LINEAR = 0.9  # a mode's shape rows enter the screen when it pairs with at least this MAC
+
+
 @dataclass
 class Screen:
     """Weighted residual ``r`` at the baseline and its linearisation: ``jac`` per element
@@ -123,18 +126,32 @@ class Screen:
             return np.zeros((len(self.r), 1))
         return J[:, np.isin(ids, np.asarray(list(eids), np.int64))].sum(axis=1, keepdims=True)
 
+    def rho(self, columns: np.ndarray, joint: bool = False) -> np.ndarray | float:
+        """Method (a), :func:`~updating._localisation.reduction` of ``columns`` beside the
+        baseline's, on the :meth:`linear` rows."""
+        rows = self.linear()
+        return reduction(self.r[rows], columns[rows], self.J_b[rows], joint=joint)
+
+    def linear(self) -> np.ndarray:
+        """The rows a linearised step can follow: the eigenvalue rows and the shape rows of
+        the modes paired with MAC ≥ :data:`MAC_LINEAR`. (A change that mixes modes, MAC 0.8,
+        leaves shape residuals beyond the linear range that drown the other rows: on the
+        2,500-DoF barrel they put a missing payload's mass screen on the skin.)"""
+        return (np.arange(len(self.r)) < len(self.f_e)) | (self.jac.mac[self.row_mode] >= MAC_LINEAR)
+
     def element_reduction(self, scales: str = "k") -> dict[int, float]:
-        """Method (a) per element: ρ of each element's change ``scales`` alone."""
+        """ρ (:meth:`rho`) of each element's change ``scales`` alone."""
         if scales not in self.jac.columns:
             return {}
-        rho = reduction(self.r, self.jac.columns[scales], self.J_b)
+        rho = self.rho(self.jac.columns[scales])
         return {int(e): float(v) for e, v in zip(self.jac.ids[scales], rho)}
 
     def step(self, columns: np.ndarray) -> np.ndarray:
-        """The linearised (Gauss–Newton) step of ``columns``' amplitudes, the baseline
-        parameters fitted with them."""
-        a = np.concatenate([self.J_b, columns], axis=1)
-        return np.linalg.lstsq(a, -self.r, rcond=1e-10)[0][self.J_b.shape[1]:]
+        """The linearised (Gauss–Newton) step of ``columns``' amplitudes on the :meth:`linear`
+        rows, the baseline parameters fitted with them."""
+        rows = self.linear()
+        a = np.concatenate([self.J_b, columns], axis=1)[rows]
+        return np.linalg.lstsq(a, -self.r[rows], rcond=1e-10)[0][self.J_b.shape[1]:]
 
     def law_columns(self, g: np.ndarray) -> np.ndarray:
         """A stiffness column and its frequency law: ``g`` and ``g·ln(f/f_ref)``."""
@@ -179,7 +196,7 @@ def localised_grids(model: Model, screen: Screen, node_scores: dict[int, float],
     for kind in (GroupStiffness, GroupMass):
         for effect in kind.candidates(model):
             ids = effect.elements(model)
-            groups.append((float(reduction(screen.r, screen.column(effect.scales, ids), screen.J_b, joint=True)), ids))
+            groups.append((float(screen.rho(screen.column(effect.scales, ids), joint=True)), ids))
     top_group = max((g[0] for g in groups), default=0.0)
     in_groups = sorted({g for rho, ids in sorted(groups, key=lambda g: -g[0])[:3] if rho >= fraction * top_group
                         for g in element_grids(model, ids)}, key=lambda k: (-node_scores.get(k, 0.0), k))
@@ -258,7 +275,7 @@ def group_candidates(model: Model, aug: Model, params: tuple[Parameter, ...], sc
             c = Candidate(ref, ref.extension(model, aug))
             g = screen.column(ref.scales, ids)
             cols = screen.law_columns(g) if c.ext.visco else g
-            c.screen = float(reduction(screen.r, cols, screen.J_b, joint=True))
+            c.screen = float(screen.rho(cols, joint=True))
             if c.ext.visco:  # start at the linearised step (E0 factor 1 + u, law coefficient a) or on a grid
                 u, a = screen.step(cols)
                 c.scan = (tuple(np.log1p([np.clip(u, -0.5, 1.0), np.clip(a, -0.7, 1.7)])),) + ref.scan
@@ -275,7 +292,7 @@ def node_candidates(aug: Model, dormant, screen: Screen) -> list[Candidate]:
         g = screen.column(ref.scales, ids)
         step = float(np.log(np.clip(screen.step(g)[0], np.exp(-3.0), np.exp(3.0))))
         c = Candidate(ref, extension(aug, **{f"{ref.scales}_add": ids}), scan=(step,) + tuple(ref.scan))
-        c.screen = float(reduction(screen.r, g, screen.J_b)[0])
+        c.screen = float(screen.rho(g)[0])
         out.append(c)
     return out
 
@@ -317,7 +334,7 @@ def patch_candidate(patch: AbstractPatch, model: Model, screen: Screen | None, f
     start = np.log(np.clip(u / ref.nsm, np.exp(-3.0), np.exp(3.0))) if ref.scales == "nsm" else \
         np.log(np.clip(1.0 + u, np.exp(-4.0), np.exp(1.0)))
     return Candidate(ref, None, scan=(float(start),) + tuple(ref.scan),
-                     screen=float(reduction(screen.r, g, screen.J_b)[0]))
+                     screen=float(screen.rho(g)[0]))
 
 
 def with_masks(cands: list[Candidate], aug: Model) -> None:

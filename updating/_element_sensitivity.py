@@ -34,7 +34,7 @@ import scipy.sparse
 import jaxfem
 from jaxfem import Model
 
-from ._residuals import Problem, evaluate, rows
+from ._residuals import Problem, evaluate, paired_subspace, rows
 
 CLUSTER_RTOL = 1e-6  # modes closer than this (relative) count as one cluster: no coefficient between them
 
@@ -49,11 +49,13 @@ _M_ORDER = ("beams", "rods", "quads", "trias", "masses")
 @dataclasses.dataclass
 class ElementJacobian:
     """Weighted residual ``r`` (rows) and ``columns[kind]`` (rows × elements) with element ids
-    ``ids[kind]``, for each of :data:`KINDS` the model has."""
+    ``ids[kind]``, for each of :data:`KINDS` the model has; ``mac`` of each test mode with
+    its paired model mode (0: unpaired)."""
 
     r: np.ndarray
     columns: dict[str, np.ndarray]
     ids: dict[str, np.ndarray]
+    mac: np.ndarray
 
 
 def _tangent(model: Model, kind: str) -> Model:
@@ -90,19 +92,21 @@ def _blocks(model: Model, kind: str):
 
 
 def _modes(problem: Problem, theta, model: Model):
-    """All computed modes (λ, Φ: n × q), a solver of (K − σM) and σ."""
+    """The paired evaluation at θ and all computed modes (λ, Φ: n × q), a solver of
+    (K − σM) and σ (on the sparse path from one solve)."""
     K, M = jaxfem.assemble(model)
     if jaxfem.use_sparse(model, problem.solver):
         sol = jaxfem.sparse_modes(K, M, problem.n_model)
         inverse = sol.solver
-        return (np.asarray(sol.lam), np.asarray(sol.basis),
+        return (paired_subspace(K, M, sol, problem), np.asarray(sol.lam), np.asarray(sol.basis),
                 lambda b: np.asarray(inverse.solve(jnp.asarray(b))), float(inverse.sigma))
     lam, phi = jaxfem.eigh(K, M)
     kd, md = np.asarray(K.todense()), np.asarray(M.todense())
     d = np.diag(md)
     sigma = -1e-3 * float(np.min(np.diag(kd)[d > 0] / d[d > 0]))
     factor = scipy.linalg.cho_factor(kd - sigma * md)
-    return np.asarray(lam), np.asarray(phi), lambda b: scipy.linalg.cho_solve(factor, b), sigma
+    return (evaluate(theta, problem), np.asarray(lam), np.asarray(phi),
+            lambda b: scipy.linalg.cho_solve(factor, b), sigma)
 
 
 def element_jacobian(problem: Problem, theta, kinds=KINDS) -> ElementJacobian:
@@ -111,8 +115,7 @@ def element_jacobian(problem: Problem, theta, kinds=KINDS) -> ElementJacobian:
     (module docstring). A kind the model has no element of is left out."""
     theta = jnp.asarray(theta)
     model = problem.model(theta)
-    ev = evaluate(theta, problem)
-    lam, Phi, solve, sigma = _modes(problem, theta, model)
+    ev, lam, Phi, solve, sigma = _modes(problem, theta, model)
     C = np.asarray(problem.C)
     index, paired = np.asarray(ev.model_index), np.asarray(ev.paired)
 
@@ -126,8 +129,8 @@ def element_jacobian(problem: Problem, theta, kinds=KINDS) -> ElementJacobian:
     G = scipy.sparse.csr_matrix(np.concatenate([g_lam, g_phi.reshape(len(r), ns * ne)], axis=1))
 
     modes = [int(i) for i in index[paired]]
-    # the paired modes signed as in the residual: a second solve may return any of them
-    # negated (ARPACK; or a tie for the largest component of a symmetric mode)
+    # the paired modes signed as in the residual: its Ritz vectors (or a second solve) may
+    # return any of them negated
     Phi = Phi.copy()
     Phi[:, modes] *= np.where(np.sum((C @ Phi[:, modes]) * np.asarray(ev.phi_a)[:, paired], axis=0) < 0, -1.0, 1.0)
     Cphi = C @ Phi
@@ -173,4 +176,4 @@ def element_jacobian(problem: Problem, theta, kinds=KINDS) -> ElementJacobian:
                 D[1:, col] += 0.5 * Cphi[:, [j]] * (np.asarray(v_m.T @ Phi_p[:, j]) / lj)[None, :]
         columns[kind] = np.asarray(G @ np.concatenate([D[0], D[1:].reshape(ns * ne, -1)]))
         ids[kind] = eids
-    return ElementJacobian(r, columns, ids)
+    return ElementJacobian(r, columns, ids, np.asarray(ev.mac))

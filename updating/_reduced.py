@@ -76,7 +76,7 @@ class Bases:
     def __init__(self, problem: Problem, theta_b):
         self._loads, self._touched, self._mass = Compiled(_loads), Compiled(_touched), Compiled(_mass)
         theta = jnp.asarray(theta_b, dtype=jnp.float64)
-        lam, Phi, self._solve, _ = _modes(problem, theta, problem.model(theta))
+        _, lam, Phi, self._solve, _ = _modes(problem, theta, problem.model(theta))
         q = problem.n_model
         lam, Phi = lam[:q], Phi[:, :q]
         index, paired = (np.asarray(a) for a in pair(jnp.asarray(lam), problem.C @ jnp.asarray(Phi), problem))
