@@ -8,8 +8,8 @@ held-out frequency error below twice the noise; the control must claim nothing.
 Not here yet: the CFRP panel's delamination (benchmark only: 284 s at its 25 mm mesh; at
 50 mm the model's own mesh error leaves χ²/row 2,538 on the change and nothing is
 declared), a loose seam from an independent truth, and a payload modelled otherwise than
-a candidate (a 20 kg mass on an RBE3 over four floor grids is localised on the skin and
-nothing is declared: open)."""
+a candidate (a 20 kg mass on an RBE3 over one floor shell: the place is found, the fit is
+not — no candidate carries a mass on an RBE3; docs/diagnosis.md)."""
 
 import json
 import os
