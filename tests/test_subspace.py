@@ -138,7 +138,7 @@ def test_vmapped_subspace_equals_unbatched(tree):
     lam_b, phi_b, _ = jax.jit(jax.vmap(lambda a: _solve(model, groups, start, a)))(a)
     for i in range(3):
         lam, phi, _ = _solve(model, groups, start, a[i])
-        np.testing.assert_allclose(lam_b[i], lam, rtol=1e-12)
+        np.testing.assert_allclose(lam_b[i], lam, rtol=1e-11)  # round-off: 1.2e-12 seen on a fresh install
         np.testing.assert_allclose(np.abs(phi_b[i]), np.abs(phi), atol=1e-9)
 
 

@@ -128,15 +128,18 @@ class Screen:
 
     def rho(self, columns: np.ndarray, joint: bool = False) -> np.ndarray | float:
         """Method (a), :func:`~updating._localisation.reduction` of ``columns`` beside the
-        baseline's, on the :meth:`linear` rows."""
+        baseline's: on all rows or on the :meth:`linear` rows, whichever is higher."""
         rows = self.linear()
-        return reduction(self.r[rows], columns[rows], self.J_b[rows], joint=joint)
+        return np.maximum(reduction(self.r, columns, self.J_b, joint=joint),
+                          reduction(self.r[rows], columns[rows], self.J_b[rows], joint=joint))
 
     def linear(self) -> np.ndarray:
         """The rows a linearised step can follow: the eigenvalue rows and the shape rows of
         the modes paired with MAC ≥ :data:`MAC_LINEAR`. (A change that mixes modes, MAC 0.8,
         leaves shape residuals beyond the linear range that drown the other rows: on the
-        2,500-DoF barrel they put a missing payload's mass screen on the skin.)"""
+        2,500-DoF barrel they put a missing payload's mass screen on the skin. All rows
+        still count in :meth:`rho`: without them a ground spring on the GARTEUR fuselage
+        screened at the neighbouring grid.)"""
         return (np.arange(len(self.r)) < len(self.f_e)) | (self.jac.mac[self.row_mode] >= MAC_LINEAR)
 
     def element_reduction(self, scales: str = "k") -> dict[int, float]:
