@@ -45,6 +45,7 @@ import sys
 import time
 
 import jax
+import numpy as np
 
 jax.config.update("jax_enable_x64", True)
 
@@ -88,8 +89,6 @@ def run_panel(control: bool = False, element_size: float | None = None, n_modes:
     """The panel's delamination (or its control) diagnosed on the change; its row.
     ``element_size`` (m) and ``n_modes``: of :func:`benchmarks.cfrp_panel.modal_change`
     (default: its 25 mm and 14 modes)."""
-    import numpy as np
-
     from benchmarks import cfrp_panel as cp
     from updating import DiagnoseOptions, relative_to
 
@@ -115,17 +114,45 @@ def run_panel(control: bool = False, element_size: float | None = None, n_modes:
 
 
 BARREL_MASS = 20.0  # kg: the payload the barrel's model lacks
+BOX_HEIGHT = 0.1  # m: the payload as a box on an RBE3 (``payload="box"``) over the shell it stands on
 
 
-def run_barrel(control: bool = False, n_dof: int = 33_000, eigensolver: str = "auto") -> dict:
+def payload_cards(model, target: int, payload: str) -> tuple[str, np.ndarray]:
+    """Bulk data of the missing payload near floor grid ``target`` and its centre (m):
+    ``grid``: a CONM2 at the grid; ``rbe3``: a CONM2 on an RBE3 over the four grids of
+    the floor shell at ``target`` nearest the barrel's mid-length; ``box``: that CONM2
+    with the inertia of a box standing on the shell (its footprint, :data:`BOX_HEIGHT`
+    high), its CG half that height above the floor — no candidate's form (a
+    :class:`~updating.Payload` has neither offset nor inertia)."""
+    rows = model.node_index([target])
+    xyz = np.asarray(model.xyz)
+    if payload == "grid":
+        return f"CONM2,9999999,{target},,{BARREL_MASS}\n", xyz[rows[0]]
+    q = model.quads
+    at = np.flatnonzero(np.any(np.asarray(q.nodes) == rows[0], axis=1))
+    mid = 0.5 * xyz[:, 0].max()
+    shell = at[np.argmin([abs(xyz[q.nodes[e]].mean(axis=0)[0] - mid) for e in at])]
+    grids = [int(model.node_ids[r]) for r in q.nodes[shell]]
+    centre = xyz[q.nodes[shell]].mean(axis=0)
+    a, b = (float(np.linalg.norm(xyz[q.nodes[shell][k]] - xyz[q.nodes[shell][k + 1]])) for k in (0, 1))
+    c = BOX_HEIGHT if payload == "box" else 0.0
+    i = [BARREL_MASS / 12 * (b * b + c * c), 0.0, BARREL_MASS / 12 * (a * a + c * c), 0.0, 0.0,
+         BARREL_MASS / 12 * (a * a + b * b)]
+    f = lambda v: repr(float(v))  # noqa: E731
+    text = (f"GRID,9999998,,{f(centre[0])},{f(centre[1])},{f(centre[2])}\n"
+            f"RBE3,9999997,,9999998,123456,1.,123,{grids[0]},{grids[1]}\n,{grids[2]},{grids[3]}\n"
+            f"CONM2,9999999,9999998,,{f(BARREL_MASS)},0.,0.,{f(c / 2)}\n,{','.join(map(f, i))}\n")
+    return text, centre
+
+
+def run_barrel(control: bool = False, n_dof: int = 33_000, eigensolver: str = "auto", payload: str = "grid") -> dict:
     """The EC 135-size barrel (``benchmarks.fuselage``) lacking a payload of
-    :data:`BARREL_MASS` kg on a floor grid (the truth: the same mesh with one more CONM2
-    card, read from its own text), or its control; 20 modes (6 suspension, 14 elastic) in
-    y and z at 100 skin grids and in z at 20 floor grids, 0.1 % on frequencies and 1 % on
-    shape components; its row. ``eigensolver``: the diagnosis' (``auto``: sparse at 33k
-    DoFs, which leaves the frequency laws out)."""
-    import numpy as np
-
+    :data:`BARREL_MASS` kg on its floor (:func:`payload_cards`: ``grid``, ``rbe3`` or ``box``; the
+    truth: the same mesh with those cards, read from its own text), or its control; 20
+    modes (6 suspension, 14 elastic) in y and z at 100 skin grids and in z at 20 floor
+    grids, 0.1 % on frequencies and 1 % on shape components; its row. ``eigensolver``:
+    the diagnosis' (``auto``: sparse at 33k DoFs, which leaves the frequency laws out).
+    Right: a mass ranked first centred within half a frame pitch of the payload."""
     from benchmarks import fuselage
     from identification import Sensors
     from updating import DiagnoseOptions, Noise, simulate_test
@@ -135,7 +162,8 @@ def run_barrel(control: bool = False, n_dof: int = 33_000, eigensolver: str = "a
     ids, xyz = np.asarray(model.node_ids), np.asarray(model.xyz)
     floor = ids[(ids >= fuselage.FLOOR) & (ids < fuselage.JOINT_SKIN)]
     target = int(floor[np.argmin(np.linalg.norm(xyz[model.node_index(floor)] - [0.3 * xyz[:, 0].max(), 0.3, 0], axis=1))])
-    truth = model if control else jaxfem.build_model(read_bdf_text(text + f"CONM2,9999999,{target},,{BARREL_MASS}\n"))
+    cards, centre = payload_cards(model, target, payload)
+    truth = model if control else jaxfem.build_model(read_bdf_text(text + cards))
     rng = np.random.default_rng(0)
     skin = np.sort(rng.choice(ids[(ids >= fuselage.SKIN) & (ids < fuselage.FLOOR)], 100, replace=False))
     on_floor = np.sort(rng.choice(floor, 20, replace=False))
@@ -148,12 +176,13 @@ def run_barrel(control: bool = False, n_dof: int = 33_000, eigensolver: str = "a
     seconds = time.perf_counter() - start
     top = report["effects"][0] if report["outcome"] == "effect" else None
     off = None
-    if top and top["kind"] in ("added_mass", "distributed_mass"):
-        off = float(np.linalg.norm(xyz[model.node_index(top["nodes"])[0]] - xyz[model.node_index([target])[0]]))
+    if top and top["kind"] in ("added_mass", "payload", "distributed_mass"):
+        off = float(np.linalg.norm(xyz[model.node_index(top["nodes"])].mean(axis=0) - centre))
     right = (report["outcome"] != "effect") if control else (off is not None and off <= fuselage.FRAME_PITCH / 2)
-    hidden = "none" if control else f"{BARREL_MASS:.0f} kg at floor grid {target}"
-    return _row("barrel control" if control else "barrel missing payload", hidden, model, test, report, seconds,
-                right, centre_off_m=off)
+    hidden = "none" if control else f"{BARREL_MASS:.0f} kg " + {
+        "grid": "at floor grid", "rbe3": "on an RBE3 at floor grid", "box": "box on an RBE3 at floor grid"}[payload] + f" {target}"
+    return _row("barrel control" if control else f"barrel missing payload ({payload})", hidden, model, test, report,
+                seconds, right, centre_off_m=off)
 
 
 def main() -> None:

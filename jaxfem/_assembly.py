@@ -31,29 +31,38 @@ from .elements import (
 )
 
 
+def _columns(model: Model, rows: np.ndarray) -> np.ndarray:
+    """The DoF-map columns that any of grid ``rows`` uses (the others are padding for all
+    of them: one RBE3 grid widens the map, not every block's element matrices)."""
+    used = np.flatnonzero((model.dofs.index[rows] < model.n_dof).reshape(-1, model.dofs.index.shape[1]).any(axis=0))
+    return used if used.size else np.arange(1)
+
+
 def _node_transform(model: Model, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """T (n_el, 6·nn, nn·w) and solved-DoF indices (n_el, nn·w) for elements on `nodes`."""
     n_el, nn = nodes.shape
-    w = model.dofs.index.shape[1]
-    coef = model.dofs.coef[nodes]  # (n_el, nn, 6, w)
+    cols = _columns(model, nodes)
+    w = len(cols)
+    coef = model.dofs.coef[nodes][..., cols]  # (n_el, nn, 6, w)
     t = np.zeros((n_el, nn * COMPONENTS, nn * w))
     for a in range(nn):
         t[:, a * COMPONENTS : (a + 1) * COMPONENTS, a * w : (a + 1) * w] = coef[:, a]
-    return t, model.dofs.index[nodes].reshape(n_el, nn * w)
+    return t, model.dofs.index[nodes][..., cols].reshape(n_el, nn * w)
 
 
 def _spring_transform(model: Model) -> tuple[np.ndarray, np.ndarray]:
     """T (n, 2, 2w) and indices (n, 2w) for scalar springs; node -1 is ground."""
     s = model.springs
-    n, w = len(s.ids), model.dofs.index.shape[1]
+    cols = _columns(model, s.nodes[s.nodes >= 0])
+    n, w = len(s.ids), len(cols)
     t = np.zeros((n, 2, 2 * w))
     idx = np.full((n, 2 * w), model.n_dof, dtype=np.int64)
     for a in range(2):
         grounded = s.nodes[:, a] < 0
         node = np.where(grounded, 0, s.nodes[:, a])
         comp = np.where(grounded, 1, s.components[:, a]) - 1
-        t[:, a, a * w : (a + 1) * w] = np.where(grounded[:, None], 0.0, model.dofs.coef[node, comp])
-        idx[:, a * w : (a + 1) * w] = np.where(grounded[:, None], model.n_dof, model.dofs.index[node])
+        t[:, a, a * w : (a + 1) * w] = np.where(grounded[:, None], 0.0, model.dofs.coef[node, comp][:, cols])
+        idx[:, a * w : (a + 1) * w] = np.where(grounded[:, None], model.n_dof, model.dofs.index[node][:, cols])
     return t, idx
 
 

@@ -96,13 +96,43 @@ def _describe(v: np.ndarray, x_ref: np.ndarray) -> str:
     return f"rotation about [{fmt(a)}] through ({fmt(x_ref + np.cross(a, t))})"  # u = θ × (x_ref − p)
 
 
-def _rbe3_matrix(card: Card, grids: _Grids) -> tuple[np.ndarray, list[tuple[int, int, str]]]:
-    """T (6 × m) with [u_ref; θ_ref] = T u_m over the independent (grid, component, field) list.
+def rbe3_matrix(r: np.ndarray, components, weights) -> tuple[np.ndarray, np.ndarray]:
+    """T (6 × m) with [u_ref; θ_ref] = T u_m, and the undetermined motions (k × 6, none: k = 0).
 
-    T = (GᵀWG)⁻¹GᵀW (MSC QRG, RBE3): G stacks one rigid-body row per independent
-    component, W = diag(WT, WT·Lc² for rotations), Lc = mean |x_i − x_ref|. Solved in
-    the scaled unknowns [u_ref; Lc·θ_ref] so that the singularity test has no units.
+    One row per independent component: its grid's offset ``r`` (m × 3, x_i − x_ref),
+    its component 1..6 and weight. T = (GᵀWG)⁻¹GᵀW (MSC QRG, RBE3): G stacks one
+    rigid-body row per independent component, W = diag(WT, WT·Lc² for rotations),
+    Lc = mean |r_i|. Solved in the scaled unknowns [u_ref; Lc·θ_ref] so that the
+    singularity test has no units; the undetermined motions are [u; θ] of the null space.
     """
+    r, w = np.asarray(r, float).reshape(-1, 3), np.array(weights, float)
+    lc = float(np.mean(np.linalg.norm(r, axis=1)))
+    scale = lc if lc > 0.0 else 1.0
+    g_rows = np.zeros((len(r), 6))
+    for n, c in enumerate(components):
+        g_rows[n, c - 1] = 1.0
+        if c <= 3:  # u_gc = e_c·u_ref + (r × e_c)·θ_ref
+            g_rows[n, 3:] = _cross_rows(r[n])[c - 1] / scale
+        else:  # θ_gc = e_c·θ_ref, measured as Lc·θ with weight WT·Lc²/scale² (WT, or 0 if Lc = 0)
+            w[n] *= (lc / scale) ** 2
+    a = g_rows.T @ (w[:, None] * g_rows)
+    eig, vec = np.linalg.eigh(a)
+    null = eig <= _SINGULAR_RTOL * max(eig[-1], np.finfo(float).tiny)
+    unscale = np.array([1.0, 1.0, 1.0] + [1.0 / scale] * 3)
+    if null.any():
+        return np.zeros((6, len(r))), (unscale[:, None] * vec[:, null]).T
+    t = np.linalg.solve(a, g_rows.T * w)  # scaled: [u_ref; Lc θ_ref] = t [u; Lc θ]
+    measured = np.array([1.0 if c <= 3 else scale for c in components])
+    return t * measured * unscale[:, None], np.zeros((0, 6))
+
+
+def undetermined(motions: np.ndarray, x_ref: np.ndarray) -> str:
+    """The undetermined rigid-body motions of an RBE3's reference grid, in words."""
+    return "; ".join(_describe(v, x_ref) for v in motions)
+
+
+def _rbe3_matrix(card: Card, grids: _Grids) -> tuple[np.ndarray, list[tuple[int, int, str]]]:
+    """:func:`rbe3_matrix` of an RBE3 card, over its independent (grid, component, field) list."""
     ref = grids(card, "REFGRID")
     entries: list[tuple[int, int, str]] = []
     weights: list[float] = []
@@ -115,33 +145,15 @@ def _rbe3_matrix(card: Card, grids: _Grids) -> tuple[np.ndarray, list[tuple[int,
             for c in _components(code):
                 entries.append((g, c, key))
                 weights.append(weight)
-    offsets = {g: grids.xyz[grids.row[g]] - grids.xyz[ref] for g, _, _ in entries}
-    lc = float(np.mean([np.linalg.norm(r) for r in offsets.values()]))
-    scale = lc if lc > 0.0 else 1.0
-    g_rows = np.zeros((len(entries), 6))
-    w = np.array(weights)
-    for n, (g, c, _) in enumerate(entries):
-        if c <= 3:  # u_gc = e_c·u_ref + (r × e_c)·θ_ref
-            g_rows[n, c - 1] = 1.0
-            g_rows[n, 3:] = _cross_rows(offsets[g])[c - 1] / scale
-        else:  # θ_gc = e_c·θ_ref, measured as Lc·θ with weight WT·Lc²/scale² (WT, or 0 if Lc = 0)
-            g_rows[n, c - 1] = 1.0
-            w[n] *= (lc / scale) ** 2
-    a = g_rows.T @ (w[:, None] * g_rows)
-    eig, vec = np.linalg.eigh(a)
-    null = eig <= _SINGULAR_RTOL * max(eig[-1], np.finfo(float).tiny)
-    if null.any():
-        unscale = np.array([1.0, 1.0, 1.0] + [1.0 / scale] * 3)
-        motions = "; ".join(_describe(unscale * v, grids.xyz[ref]) for v in vec[:, null].T)
+    r = np.array([grids.xyz[grids.row[g]] - grids.xyz[ref] for g, _, _ in entries]).reshape(-1, 3)
+    t, null = rbe3_matrix(r, [c for _, c, _ in entries], weights)
+    if len(null):
         raise card.error(
             "GROUPS",
             f"the independent DoFs do not determine the rigid-body motion of REFGRID {card['REFGRID']} "
-            f"(GᵀWG is singular; undetermined: {motions}); add translations (123) of independent grids "
-            "that are not all on one line through it, or their rotations (456)",
+            f"(GᵀWG is singular; undetermined: {undetermined(null, grids.xyz[ref])}); add translations (123) "
+            "of independent grids that are not all on one line through it, or their rotations (456)",
         )
-    t = np.linalg.solve(a, g_rows.T * w)  # scaled: [u_ref; Lc θ_ref] = t [u; Lc θ]
-    measured = np.array([1.0 if c <= 3 else scale for _, c, _ in entries])
-    t = t * measured / np.array([1.0, 1.0, 1.0, scale, scale, scale])[:, None]
     return t, entries
 
 

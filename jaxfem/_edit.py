@@ -1,4 +1,4 @@
-"""Structural edits of a built :class:`jaxfem.Model` (new grids, springs, masses, releases).
+"""Structural edits of a built :class:`jaxfem.Model` (new grids, springs, masses, releases, RBE3s).
 
 Used to add physical effects to a model (a flexible joint, a missing mass, a support
 spring) without going back to the bulk data. Every edit returns a new model; the DoF
@@ -11,11 +11,22 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
 from ._assembly import finalize_dofs
+from ._constraints import rbe3_matrix, undetermined
 from ._model import COMPONENTS, STRUCTURAL_BLOCKS, Bushes, DofMap, Masses, Model, Springs
+
+
+def _append(a, b) -> jax.Array:
+    """``a`` and ``b`` (float64) joined along the first axis: on the host when both are
+    concrete (a jitted concatenate compiles anew for every length: seconds per grid when a
+    diagnosis adds dormant elements at tens of grids)."""
+    if isinstance(a, jax.core.Tracer) or isinstance(b, jax.core.Tracer):
+        return jnp.concatenate([jnp.asarray(a, jnp.float64), jnp.asarray(b, jnp.float64)])
+    return jax.device_put(np.concatenate([np.asarray(a, np.float64), np.asarray(b, np.float64)]))
 
 
 def _new_id(existing: np.ndarray, start: int) -> int:
@@ -80,6 +91,43 @@ def add_grid(model: Model, xyz: Sequence[float], node: int | None = None) -> tup
     return eqx.tree_at(lambda m: m.dofs, grown, _own_dofs(grown, len(model.node_ids))), node
 
 
+def add_rbe3(model: Model, grids: Sequence[int], xyz: Sequence[float] | None = None,
+             components: Sequence[int] = (1, 2, 3), node: int | None = None) -> tuple[Model, int]:
+    """A new grid at ``xyz`` (m; default the centroid of ``grids``) whose six components
+    are the RBE3 average of ``components`` of ``grids``, equal weights (as the bulk-data
+    RBE3 card, :func:`jaxfem._constraints.rbe3_matrix`): a dependent grid, no new DoFs.
+    Returns ``(model, grid id)``."""
+    rows = model.node_index(grids)
+    x = np.asarray(model.xyz)[rows]
+    ref = x.mean(axis=0) if xyz is None else np.asarray(xyz, dtype=np.float64).reshape(3)
+    entries = [(row, c) for row in rows for c in components]
+    t, null = rbe3_matrix([x[k // len(components)] - ref for k in range(len(entries))],
+                          [c for _, c in entries], np.ones(len(entries)))
+    if len(null):
+        raise ValueError(f"RBE3 over grids {list(grids)}: their components {tuple(components)} do not determine "
+                         f"the motion of the new grid ({undetermined(null, ref)})")
+    dofs = model.dofs
+    acc: dict[int, np.ndarray] = {}  # independent DoF → its coefficient in each of the six components
+    for k, (row, c) in enumerate(entries):
+        for i, a in zip(dofs.index[row], dofs.coef[row, c - 1]):
+            if i < dofs.n_dof and a != 0.0:
+                acc[int(i)] = acc.get(int(i), np.zeros(COMPONENTS)) + a * t[:, k]
+    used = sorted(acc)
+    dofs = _widen(dofs, len(used), 0)
+    w = dofs.index.shape[1]
+    index = np.full((1, w), dofs.n_dof, np.int64)
+    index[0, :len(used)] = used
+    coef = np.zeros((1, COMPONENTS, w))
+    coef[0, :, :len(used)] = np.array([acc[i] for i in used]).T.reshape(COMPONENTS, len(used))
+    node = _new_id(model.node_ids, 1) if node is None else int(node)
+    if node in set(model.node_ids.tolist()):
+        raise ValueError(f"grid {node} already exists")
+    new = DofMap(index=np.concatenate([dofs.index, index]), coef=np.concatenate([dofs.coef, coef]),
+                 labels=dofs.labels, massless=dofs.massless, auto_spc=dofs.auto_spc, n_dof=dofs.n_dof)
+    return eqx.tree_at(lambda m: (m.node_ids, m.xyz, m.dofs), model,
+                       (np.append(model.node_ids, node), np.concatenate([model.xyz, ref[None]]), new)), node
+
+
 def reconnect(model: Model, eids: Sequence[int], old: int, new: int) -> Model:
     """Elements ``eids`` (beams, rods, bushes, shells) attached to grid ``old`` are moved to grid ``new``."""
     old_row, new_row = model.node_index([old, new])
@@ -102,9 +150,8 @@ def add_bush(model: Model, node_a: int, node_b: int, k: Sequence[float], eid: in
     new = Bushes(
         ids=np.append(b.ids, eid), pids=np.append(b.pids, pid),
         nodes=np.concatenate([b.nodes, rows[None, :]]),
-        axes=jnp.concatenate([b.axes, jnp.eye(3)[None]]),
-        k=jnp.concatenate([b.k, jnp.asarray(k, dtype=jnp.float64).reshape(1, 6)]),
-        s=jnp.append(b.s, s), k_scale=jnp.append(b.k_scale, 1.0),
+        axes=_append(b.axes, np.eye(3)[None]), k=_append(b.k, np.reshape(k, (1, 6))),
+        s=_append(b.s, [s]), k_scale=_append(b.k_scale, [1.0]),
     )
     return eqx.tree_at(lambda m: m.bushes, model, new), eid
 
@@ -121,8 +168,7 @@ def add_ground_springs(model: Model, node: int, k: Sequence[float], components: 
         ids=np.append(s.ids, eids), pids=np.append(s.pids, np.zeros(n, np.int64)),
         nodes=np.concatenate([s.nodes, np.array([[row, -1]] * n, dtype=np.int64).reshape(n, 2)]),
         components=np.concatenate([s.components, np.array([[c, 0] for c in components], dtype=np.int64).reshape(n, 2)]),
-        k=jnp.concatenate([s.k, jnp.broadcast_to(jnp.asarray(k, dtype=jnp.float64), (n,))]),
-        k_scale=jnp.append(s.k_scale, jnp.ones(n)),
+        k=_append(s.k, np.broadcast_to(k, (n,))), k_scale=_append(s.k_scale, np.ones(n)),
     )
     return eqx.tree_at(lambda m: m.springs, model, new), eids
 
@@ -134,8 +180,8 @@ def add_mass(model: Model, node: int, m: float, eid: int | None = None) -> tuple
     eid = _new_id(model.element_ids(), 1) if eid is None else int(eid)
     new = Masses(
         ids=np.append(c.ids, eid), nodes=np.append(c.nodes, row),
-        m=jnp.append(c.m, m), offset=jnp.concatenate([c.offset, jnp.zeros((1, 3))]),
-        inertia=jnp.concatenate([c.inertia, jnp.zeros((1, 3, 3))]), m_scale=jnp.append(c.m_scale, 1.0),
+        m=_append(c.m, [m]), offset=_append(c.offset, np.zeros((1, 3))),
+        inertia=_append(c.inertia, np.zeros((1, 3, 3))), m_scale=_append(c.m_scale, [1.0]),
     )
     return eqx.tree_at(lambda mm: mm.masses, model, new), eid
 

@@ -26,6 +26,7 @@ from ._diagnose import add_effect as add_effect
 from ._diagnose import diagnose as diagnose
 from ._abstract_effect import AbstractEffect as AbstractEffect
 from ._effects import AddedMass as AddedMass
+from ._effects import Payload as Payload
 from ._effects import BoundarySpring as BoundarySpring
 from ._effects import Effect as Effect
 from ._effects import FrequencyDependentStiffness as FrequencyDependentStiffness

@@ -36,6 +36,7 @@ from ._effects import (
     GroupMass,
     GroupStiffness,
     Joint,
+    Payload,
     Seam,
     PatchStiffness,
 )
@@ -235,12 +236,25 @@ def region_structures(model: Model, region: list[int], node_score: dict, kinds, 
     return chosen
 
 
+def region_shells(model: Model, nodes: list[int]) -> list[tuple[int, tuple[int, ...]]]:
+    """(shell id, its grids) of every shell at a grid of ``nodes``, in id order."""
+    out = {}
+    for name in ("quads", "trias"):
+        sh = getattr(model, name)
+        rows = model.node_index(nodes)
+        for eid, row in zip(sh.ids, sh.nodes):
+            if np.isin(row, rows).any():
+                out[int(eid)] = tuple(int(model.node_ids[r]) for r in row if r >= 0)
+    return sorted(out.items())
+
+
 def augment(model: Model, nodes: list[int], structures: list[AbstractEffect], f_e):
     """The model plus a dormant (scale 0) point mass and ground springs at each grid of
     ``nodes``, at the reference values of :class:`AddedMass` and :class:`BoundarySpring`,
-    and each joint or support of ``structures`` released and held :data:`STIFF` times
-    stiffer than its reference. Returns the model, (reference effect, dormant element ids)
-    per grid and kind, and (stiffened effect, its element ids) per structure."""
+    a dormant :class:`Payload` on each shell at those grids, and each joint or support of
+    ``structures`` released and held :data:`STIFF` times stiffer than its reference.
+    Returns the model, (reference effect, dormant element ids) per grid or shell and kind,
+    and (stiffened effect, its element ids) per structure."""
     nominal = model
     stiffened = []
     for effect in structures:
@@ -256,6 +270,10 @@ def augment(model: Model, nodes: list[int], structures: list[AbstractEffect], f_
         model, eid = edit.add_mass(model, node, mass.m)
         model, eids = edit.add_ground_springs(model, node, spring.k, (1, 2, 3))
         dormant += [(mass, [eid]), (spring, eids)]
+    for shell, grids in region_shells(nominal, nodes):
+        payload = Payload(nodes=grids, label=f"RBE3 over the grids of shell {shell}").at_reference(nominal, f_e)
+        before, model = model, payload.add_to(model)
+        dormant.append((payload, list(payload._new(before, model))))
     asleep = {s: [e for ref, ids in dormant if ref.scales == s for e in ids] for s in ("k", "m")}
     c, s = model.masses, model.springs
     model = eqx.tree_at(lambda m: (m.masses.m_scale, m.springs.k_scale), model, (

@@ -13,6 +13,7 @@ model offers (``candidates``). The kinds, by their JSON/CLI names:
   property group or part of one (eq. 3.1);
 - ``joint`` (:class:`Joint`): a rigid connection made flexible;
 - ``added_mass`` (:class:`AddedMass`): a point mass at a grid;
+- ``payload`` (:class:`Payload`): a point mass on an RBE3 over a footprint of grids;
 - ``boundary_spring`` (:class:`BoundarySpring`): springs to ground at a grid;
 - ``frequency_dependent_stiffness`` (:class:`FrequencyDependentStiffness`):
   ``E(f) = E0 (1 + α)(1 + a ln(f/f_ref))`` on a group (:class:`jaxfem.Viscoelastic`).
@@ -745,12 +746,8 @@ class BoundarySpring(AbstractAddedElements):
                 f"k_rot = {spread(self.k_rot, s[1], 'N·m/rad')}")
 
 
-class AddedMass(AbstractAddedElements):
-    """A point mass at a grid (CONM2). Values: ``m`` (kg)."""
-
-    nodes: tuple[int, ...] = ids_field()
-    label: str = label_field()
-    m: float | None = value_field()
+class AbstractMass(AbstractAddedElements):
+    """Added mass: one value ``m`` (kg), from 1 % of the total mass."""
 
     kind = "added_mass"
     value_names = ("m",)
@@ -761,12 +758,7 @@ class AddedMass(AbstractAddedElements):
     def __check_init__(self):
         self._check_nodes()
 
-    def add_to(self, model: Model) -> Model:
-        for node in self.nodes:
-            model = edit.add_mass(model, node, self._need("m"))[0]
-        return model
-
-    def at_reference(self, model: Model, f_test_hz) -> AddedMass:
+    def at_reference(self, model: Model, f_test_hz) -> AbstractMass:
         """1 % of the total mass."""
         return replace(self, m=0.01 * total_mass(model))
 
@@ -775,8 +767,53 @@ class AddedMass(AbstractAddedElements):
             return [f"added mass {self.m:.3g} kg is {100 * self.m / total_mass:.0f} % of the total"]
         return []
 
+
+class AddedMass(AbstractMass):
+    """A point mass at a grid (CONM2). Values: ``m`` (kg)."""
+
+    nodes: tuple[int, ...] = ids_field()
+    label: str = label_field()
+    m: float | None = value_field()
+
+    def add_to(self, model: Model) -> Model:
+        for node in self.nodes:
+            model = edit.add_mass(model, node, self._need("m"))[0]
+        return model
+
     def advice(self, sd) -> str:
         return f"add {spread(self.m, float(np.atleast_1d(sd)[0]), 'kg')} at grid {', '.join(map(str, self.nodes))}"
+
+
+class Payload(AbstractMass):
+    """A payload hung on an interpolation element, as seats, boxes and equipment are
+    modelled: a point mass (CONM2) at the centroid of grids ``nodes``, carried by an RBE3
+    on their translations with equal weights. It moves with their mean motion — not with
+    one grid (:class:`AddedMass`) nor with the shells' bending between them
+    (:class:`DistributedMass`). Offered on each shell of the localised region, its grids
+    the footprint. Values: ``m`` (kg)."""
+
+    nodes: tuple[int, ...] = ids_field()
+    label: str = label_field()
+    m: float | None = value_field()
+
+    kind = "payload"
+
+    def __check_init__(self):
+        self._check_nodes()
+        if len(self.nodes) < 3:
+            raise ValueError(f"effect payload: give at least 3 grids not on one line (the RBE3's footprint), "
+                             f"got {list(self.nodes)}")
+
+    def add_to(self, model: Model) -> Model:
+        model, ref = edit.add_rbe3(model, self.nodes)
+        return edit.add_mass(model, ref, self._need("m"))[0]
+
+    def where(self) -> str:
+        return self.label or f"RBE3 over grids {', '.join(map(str, self.nodes))}"
+
+    def advice(self, sd) -> str:
+        return (f"add a payload of {spread(self.m, float(np.atleast_1d(sd)[0]), 'kg')} on an RBE3 "
+                f"over grids {', '.join(map(str, self.nodes))} (a CONM2 at their centroid)")
 
 
 # ---------------------------------------------------------------------------------------
@@ -784,7 +821,7 @@ class AddedMass(AbstractAddedElements):
 
 
 _TYPES: dict[str, type[AbstractEffect]] = {t.kind: t for t in (
-    GroupStiffness, GroupMass, Joint, Seam, AddedMass, BoundarySpring, FrequencyDependentStiffness, *PATCH_KINDS)}
+    GroupStiffness, GroupMass, Joint, Seam, AddedMass, Payload, BoundarySpring, FrequencyDependentStiffness, *PATCH_KINDS)}
 KINDS = tuple(_TYPES)
 
 
@@ -809,7 +846,7 @@ def Effect(kind: str, pids=(), eids=(), nodes=(), values: dict | None = None, la
 def parse_effect(spec: str) -> AbstractEffect:
     """``KIND:TARGET`` as on the command line, e.g. ``joint:node=6001``,
     ``joint:node=3007;pids=21,22``, ``stiffness:pid=41``, ``mass:eids=201-205``,
-    ``added_mass:node=2015``, ``boundary_spring:node=1``,
+    ``added_mass:node=2015``, ``payload:nodes=2015,2016,2026,2025``, ``boundary_spring:node=1``,
     ``frequency_dependent_stiffness:pid=41``, ``delamination:node=1234;radius=0.03``,
     ``patch_stiffness:node=1234;radius=0.05;part=bending`` (radius in m),
     ``seam:node=1001-1005;pids=101,201``."""

@@ -3,6 +3,7 @@ elements at a grid, property groups and their halves, total mass, stiffness scal
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterator
 
 import jax
@@ -19,14 +20,26 @@ def _own(model: Model, row: int) -> set[int]:
     return set(labels[labels[:, 0] == model.node_ids[row], 1].tolist())
 
 
-_MASTERS: dict[int, tuple[Model, dict[int, int]]] = {}  # id(model) → (model, its masters): the last few
+def per_model(fn):
+    """``fn(model)`` computed once per model (by identity; the last four kept): the
+    effects ask it for every grid and every candidate."""
+    last: dict[int, tuple[Model, object]] = {}
+
+    def cached(model: Model):
+        if id(model) in last and last[id(model)][0] is model:
+            return last[id(model)][1]
+        out = fn(model)
+        while len(last) >= 4:
+            last.pop(next(iter(last)))
+        last[id(model)] = (model, out)
+        return out
+
+    return functools.wraps(fn)(cached)
 
 
+@per_model
 def masters(model: Model) -> dict[int, int]:
-    """RBE2-dependent grid → the grid whose DoFs carry it (from the DoF map; computed once
-    per model, since the effects ask for every grid)."""
-    if id(model) in _MASTERS and _MASTERS[id(model)][0] is model:
-        return _MASTERS[id(model)][1]
+    """RBE2-dependent grid → the grid whose DoFs carry it (from the DoF map)."""
     owner = np.asarray(model.dofs.labels[:, 0])
     out = {}
     for row, node in enumerate(model.node_ids):
@@ -35,9 +48,6 @@ def masters(model: Model) -> dict[int, int]:
         owners = set(owner[idx].tolist())
         if idx.size and int(node) not in owners and len(owners) == 1:
             out[int(node)] = owners.pop()
-    while len(_MASTERS) >= 4:
-        _MASTERS.pop(next(iter(_MASTERS)))
-    _MASTERS[id(model)] = (model, out)
     return out
 
 
@@ -121,6 +131,7 @@ def property_groups(model: Model, pids: list[int], *, split: bool) -> list[tuple
     return out
 
 
+@per_model
 def total_mass(model: Model) -> float:
     """Structural plus lumped mass (kg), with the current mass factors.
 
