@@ -15,14 +15,16 @@ difference √2×), and its control (the healthy panel measured twice). Right: a
 delamination ranked first with its centre within one element size of the true centre.
 
 **Real size** (``--barrel``): the 33,000-DoF stiffened barrel of :mod:`benchmarks.fuselage`
-(the EC 135's size, thesis §5.2) lacking a 20 kg payload on a floor grid, and its
-control; the sparse eigensolver, the candidates fitted on reduced models
-(:mod:`updating._reduced`). Right: an added or distributed mass ranked first within half
-a frame pitch of the true grid.
+(the EC 135's size, thesis §5.2) lacking a 20 kg payload on its floor (``--payload``:
+a CONM2 at a grid — the default —, on an RBE3 over a floor shell, or as a box there,
+:func:`payload_cards`), and its control; the sparse eigensolver, the candidates fitted on
+reduced models (:mod:`updating._reduced`). Right: a mass (added, payload or distributed)
+ranked first, centred within half a frame pitch of the payload.
 
-Usage: ``python -m benchmarks.perf_diagnose [--cases NAME ...] [--panel] [--barrel] [--json OUT]``.
+Usage: ``python -m benchmarks.perf_diagnose [--cases NAME ...] [--panel] [--barrel [--payload grid|rbe3|box]
+[--barrel-dof N]] [--json OUT]``.
 
-**Measured** (``--cases --panel --barrel``, one run, 2-core x86-64, jax 0.10.2; 2026-11-24):
+**Measured** (``--cases --panel --barrel --payload grid``, one run, 2-core x86-64, jax 0.10.2; 2026-11-24):
 
 | case | DoF | declared | right | held-out Δf [%] | posterior | χ²/row | s |
 |---|---|---|---|---|---|---|---|
@@ -190,6 +192,10 @@ def main() -> None:
     parser.add_argument("--cases", nargs="*", default=[c.name for c in CASES])
     parser.add_argument("--panel", action="store_true", help="also the CFRP panel's delamination and its control")
     parser.add_argument("--barrel", action="store_true", help="also the 33k-DoF barrel's missing payload and its control")
+    parser.add_argument("--payload", choices=("grid", "rbe3", "box"), default="grid",
+                        help="the barrel's payload: a CONM2 at a grid, on an RBE3 over a shell, or a box there "
+                             "(payload_cards)")
+    parser.add_argument("--barrel-dof", type=int, default=33_000, help="the barrel's size (DoFs)")
     parser.add_argument("--json", help="write the rows as JSON")
     args = parser.parse_args()
     print(f"# {platform.processor() or platform.machine()}, {os.cpu_count()} cores, jax {jax.__version__}")
@@ -200,7 +206,8 @@ def main() -> None:
     if args.panel:
         runs += [run_panel, lambda: run_panel(control=True)]
     if args.barrel:
-        runs += [run_barrel, lambda: run_barrel(control=True)]
+        runs += [lambda: run_barrel(n_dof=args.barrel_dof, payload=args.payload),
+                 lambda: run_barrel(control=True, n_dof=args.barrel_dof)]
     for run in runs:
         r = run()
         rows.append(r)

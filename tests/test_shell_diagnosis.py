@@ -7,9 +7,11 @@ held-out frequency error below twice the noise; the control must claim nothing.
 
 Not here yet: the CFRP panel's delamination (benchmark only: 284 s at its 25 mm mesh; at
 50 mm the model's own mesh error leaves χ²/row 2,538 on the change and nothing is
-declared), a loose seam from an independent truth, and a payload modelled otherwise than
-a candidate (a 20 kg mass on an RBE3 over one floor shell: the place is found, the fit is
-not — no candidate carries a mass on an RBE3; docs/diagnosis.md)."""
+declared), a loose seam from an independent truth, and a payload on an RBE3
+(``run_barrel(payload="rbe3")``: found on its shell at 2 threads, 20 kg, held-out 2.26 % →
+0.10 %; on one thread, as here, the simulated test came out otherwise — held-out 2.14 %
+before — and a mass on the skin was declared; a box's inertia or CG offset is not
+localised at all: docs/diagnosis.md)."""
 
 import json
 import os
