@@ -749,7 +749,6 @@ class BoundarySpring(AbstractAddedElements):
 class AbstractMass(AbstractAddedElements):
     """Added mass: one value ``m`` (kg), from 1 % of the total mass."""
 
-    kind = "added_mass"
     value_names = ("m",)
     scales = "m"
     scan = SCAN
@@ -774,6 +773,8 @@ class AddedMass(AbstractMass):
     nodes: tuple[int, ...] = ids_field()
     label: str = label_field()
     m: float | None = value_field()
+
+    kind = "added_mass"
 
     def add_to(self, model: Model) -> Model:
         for node in self.nodes:
