@@ -73,21 +73,29 @@ def release(model: Model, node: int) -> Model:
     return eqx.tree_at(lambda m: m.dofs, model, _own_dofs(model, row))
 
 
-def add_grid(model: Model, xyz: Sequence[float], node: int | None = None) -> tuple[Model, int]:
-    """A new grid at ``xyz`` (m) with six independent DoFs; returns ``(model, grid id)``."""
+def _with_grid(model: Model, xyz, node: int | None, terms: dict[int, np.ndarray]) -> tuple[Model, int]:
+    """``model`` with a new grid at ``xyz`` (m) whose six components are ``terms``
+    (independent DoF → its coefficient in each component; none: padding only)."""
     node = _new_id(model.node_ids, 1) if node is None else int(node)
     if node in set(model.node_ids.tolist()):
         raise ValueError(f"grid {node} already exists")
-    xyz = np.asarray(xyz, dtype=np.float64).reshape(1, 3)
-    dofs = model.dofs
-    index = np.concatenate([dofs.index, np.full((1, dofs.index.shape[1]), dofs.n_dof, np.int64)])
-    coef = np.concatenate([dofs.coef, np.zeros((1,) + dofs.coef.shape[1:])])
-    grown = eqx.tree_at(
-        lambda m: (m.node_ids, m.xyz, m.dofs), model,
-        (np.append(model.node_ids, node), np.concatenate([model.xyz, xyz]),
-         DofMap(index=index, coef=coef, labels=dofs.labels, massless=dofs.massless,
-                auto_spc=dofs.auto_spc, n_dof=dofs.n_dof)),
-    )
+    used = sorted(terms)
+    dofs = _widen(model.dofs, len(used), 0)
+    index = np.full((1, dofs.index.shape[1]), dofs.n_dof, np.int64)
+    coef = np.zeros((1, COMPONENTS, dofs.index.shape[1]))
+    index[0, :len(used)] = used
+    for k, i in enumerate(used):
+        coef[0, :, k] = terms[i]
+    grown = DofMap(index=np.concatenate([dofs.index, index]), coef=np.concatenate([dofs.coef, coef]),
+                   labels=dofs.labels, massless=dofs.massless, auto_spc=dofs.auto_spc, n_dof=dofs.n_dof)
+    return eqx.tree_at(lambda m: (m.node_ids, m.xyz, m.dofs), model,
+                       (np.append(model.node_ids, node),
+                        np.concatenate([model.xyz, np.asarray(xyz, dtype=np.float64).reshape(1, 3)]), grown)), node
+
+
+def add_grid(model: Model, xyz: Sequence[float], node: int | None = None) -> tuple[Model, int]:
+    """A new grid at ``xyz`` (m) with six independent DoFs; returns ``(model, grid id)``."""
+    grown, node = _with_grid(model, xyz, node, {})
     return eqx.tree_at(lambda m: m.dofs, grown, _own_dofs(grown, len(model.node_ids))), node
 
 
@@ -101,31 +109,18 @@ def add_rbe3(model: Model, grids: Sequence[int], xyz: Sequence[float] | None = N
     x = np.asarray(model.xyz)[rows]
     ref = x.mean(axis=0) if xyz is None else np.asarray(xyz, dtype=np.float64).reshape(3)
     entries = [(row, c) for row in rows for c in components]
-    t, null = rbe3_matrix([x[k // len(components)] - ref for k in range(len(entries))],
-                          [c for _, c in entries], np.ones(len(entries)))
+    t, null = rbe3_matrix(np.repeat(x - ref, len(components), axis=0), [c for _, c in entries],
+                          np.ones(len(entries)))
     if len(null):
         raise ValueError(f"RBE3 over grids {list(grids)}: their components {tuple(components)} do not determine "
                          f"the motion of the new grid ({undetermined(null, ref)})")
     dofs = model.dofs
-    acc: dict[int, np.ndarray] = {}  # independent DoF → its coefficient in each of the six components
+    terms: dict[int, np.ndarray] = {}  # independent DoF → its coefficient in each of the six components
     for k, (row, c) in enumerate(entries):
         for i, a in zip(dofs.index[row], dofs.coef[row, c - 1]):
             if i < dofs.n_dof and a != 0.0:
-                acc[int(i)] = acc.get(int(i), np.zeros(COMPONENTS)) + a * t[:, k]
-    used = sorted(acc)
-    dofs = _widen(dofs, len(used), 0)
-    w = dofs.index.shape[1]
-    index = np.full((1, w), dofs.n_dof, np.int64)
-    index[0, :len(used)] = used
-    coef = np.zeros((1, COMPONENTS, w))
-    coef[0, :, :len(used)] = np.array([acc[i] for i in used]).T.reshape(COMPONENTS, len(used))
-    node = _new_id(model.node_ids, 1) if node is None else int(node)
-    if node in set(model.node_ids.tolist()):
-        raise ValueError(f"grid {node} already exists")
-    new = DofMap(index=np.concatenate([dofs.index, index]), coef=np.concatenate([dofs.coef, coef]),
-                 labels=dofs.labels, massless=dofs.massless, auto_spc=dofs.auto_spc, n_dof=dofs.n_dof)
-    return eqx.tree_at(lambda m: (m.node_ids, m.xyz, m.dofs), model,
-                       (np.append(model.node_ids, node), np.concatenate([model.xyz, ref[None]]), new)), node
+                terms[int(i)] = terms.get(int(i), np.zeros(COMPONENTS)) + a * t[:, k]
+    return _with_grid(model, ref, node, terms)
 
 
 def reconnect(model: Model, eids: Sequence[int], old: int, new: int) -> Model:

@@ -238,10 +238,9 @@ def region_structures(model: Model, region: list[int], node_score: dict, kinds, 
 
 def region_shells(model: Model, nodes: list[int]) -> list[tuple[int, tuple[int, ...]]]:
     """(shell id, its grids) of every shell at a grid of ``nodes``, in id order."""
-    out = {}
+    out, rows = {}, model.node_index(nodes)
     for name in ("quads", "trias"):
         sh = getattr(model, name)
-        rows = model.node_index(nodes)
         for eid, row in zip(sh.ids, sh.nodes):
             if np.isin(row, rows).any():
                 out[int(eid)] = tuple(int(model.node_ids[r]) for r in row if r >= 0)
