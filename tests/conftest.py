@@ -4,14 +4,39 @@ import os
 
 # Several host devices for the sharding tests; no LLVM optimisation of the compiled code:
 # compilation dominates the suite's time (measured 22 % less wall time at -O0, results
-# equal to rounding). Must be set before JAX starts its backend.
-os.environ.setdefault("XLA_FLAGS", "--xla_force_host_platform_device_count=4 --xla_backend_optimization_level=0")
+# equal to rounding). Under xdist (one worker per core) each worker computes on one
+# thread: two workers' thread pools oversubscribe the cores (tests/test_diagnose.py on 2
+# cores: 857 → 738 worker-seconds). Must be set before JAX and the BLAS libraries start.
+WORKER = "PYTEST_XDIST_WORKER" in os.environ
+ONE_THREAD = " --xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1" if WORKER else ""
+os.environ.setdefault("XLA_FLAGS", "--xla_force_host_platform_device_count=4 --xla_backend_optimization_level=0"
+                      + ONE_THREAD)
+if WORKER:
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(var, "1")
 
 import jax  # noqa: E402
 import pytest  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_dtype_promotion", "strict")
+
+if WORKER:
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1)  # NumPy's and SciPy's BLAS, if loaded before this file
+
+
+def pytest_collection_modifyitems(items):
+    """The long end-to-end tests first, the longest (``slow(seconds=…)``, measured) before
+    them: under xdist they start at once on every worker and the short tests fill in
+    behind them, instead of one long test holding the run's end."""
+
+    def order(item):
+        slow = item.get_closest_marker("slow")
+        return (slow is None, -(slow.kwargs.get("seconds", 0) if slow else 0))
+
+    items.sort(key=order)
 
 
 @pytest.fixture
