@@ -44,7 +44,7 @@ import sys
 
 if "--xla-one-thread" in sys.argv:  # must precede the jax import
     os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "")
-                               + " --xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1").strip()
+                               + " --xla_cpu_multi_thread_eigen=false").strip()
 
 import argparse  # noqa: E402
 import json  # noqa: E402

@@ -7,13 +7,14 @@ import os
 # equal to rounding). Under xdist (one worker per core) each worker computes on one
 # thread: two workers' thread pools oversubscribe the cores (tests/test_diagnose.py on 2
 # cores: 857 → 738 worker-seconds). Must be set before JAX and the BLAS libraries start.
+ONE_THREAD = {"XLA_FLAGS": "--xla_cpu_multi_thread_eigen=false",
+              "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 WORKER = "PYTEST_XDIST_WORKER" in os.environ
-ONE_THREAD = " --xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1" if WORKER else ""
 os.environ.setdefault("XLA_FLAGS", "--xla_force_host_platform_device_count=4 --xla_backend_optimization_level=0"
-                      + ONE_THREAD)
+                      + (" " + ONE_THREAD["XLA_FLAGS"] if WORKER else ""))
 if WORKER:
-    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ.setdefault(var, "1")
+    for var, value in ONE_THREAD.items():
+        os.environ.setdefault(var, value)
 
 import jax  # noqa: E402
 import pytest  # noqa: E402
@@ -34,7 +35,7 @@ def pytest_collection_modifyitems(items):
 
     def order(item):
         slow = item.get_closest_marker("slow")
-        return (slow is None, -(slow.kwargs.get("seconds", 0) if slow else 0))
+        return (0, -slow.kwargs.get("seconds", 0)) if slow else (1, 0)
 
     items.sort(key=order)
 

@@ -20,11 +20,10 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import ONE_THREAD
 
 BARREL_DOF = 2_500  # above DiagnoseOptions.reduce_above: the candidates are fitted on reduced models
 NOISE_F = 0.001  # the barrel's frequency noise (relative σ of f)
-ONE_THREAD = {"XLA_FLAGS": "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1",
-              "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
 def _row(case: str) -> dict:
