@@ -15,6 +15,7 @@ import numpy as np
 import scipy.sparse
 import scipy.sparse.linalg
 
+from ._eager import compiled_when_eager
 from ._matrix import ElementMatrix
 from ._model import COMPONENTS, DofMap, Model, check_float64
 from .elements import (
@@ -125,6 +126,7 @@ def _spring_block(model: Model):
     return (s.k * s.k_scale)[:, None, None] * unit
 
 
+@compiled_when_eager
 def assemble(model: Model) -> tuple[ElementMatrix, ElementMatrix]:
     """Stiffness and mass matrices of the solved DoFs, K(p) and M(p).
 

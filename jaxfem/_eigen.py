@@ -47,6 +47,7 @@ import jax.scipy.linalg as jsl
 import numpy as np
 from jaxtyping import Array, Float
 
+from ._eager import compiled_when_eager
 from ._matrix import AbstractSymmetricMatrix, DenseMatrix
 from ._model import Opaque, check_float64
 
@@ -96,8 +97,12 @@ def eigh(
         raise ValueError(f"degenerate must be 'mean' or 'split', got {degenerate!r}")
     _check_memory(K.n)
     (kv, ks), (mv, ms) = _values_structure(K), _values_structure(M)
-    return _eigh(kv, mv, structure=Opaque((ks, ms)), n_modes=n_modes, degenerate=degenerate,
-                 rtol=float(rtol))
+    return _eigh_of(kv, mv, ks, ms, n_modes, degenerate, float(rtol))
+
+
+@compiled_when_eager
+def _eigh_of(kv, mv, ks, ms, n_modes: int, degenerate: str, rtol: float):
+    return _eigh(kv, mv, structure=Opaque((ks, ms)), n_modes=n_modes, degenerate=degenerate, rtol=rtol)
 
 
 DENSE_ARRAYS = 8  # n × n float64 arrays alive at once in the dense solve and its JVP (an estimate)

@@ -8,6 +8,7 @@ differentiated, and their shapes fix the shapes of everything downstream.
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Sequence
 
 import equinox as eqx
@@ -322,10 +323,38 @@ class Model(eqx.Module):
 
 
 class Opaque:
-    """A static, non-pytree holder (hashed by identity): keeps NumPy structure out of tracing."""
+    """A static, non-pytree holder: keeps NumPy structure out of tracing. Hashed and
+    compared by content (NumPy arrays by their bytes), so that equal structures share
+    compiled code."""
 
     def __init__(self, value):
         self.value = value
+        self._key = None
+
+    def _content(self):
+        if self._key is None:
+            leaves, treedef = jax.tree.flatten(self.value)
+            self._key = (treedef, tuple(_leaf_key(x) for x in leaves))
+        return self._key
+
+    def __hash__(self) -> int:
+        return hash(self._content())
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, Opaque) and (self is other or self._content() == other._content())
+
+
+def _leaf_key(x):
+    """A hashable stand-in for one leaf of an :class:`Opaque`: an array by its dtype,
+    shape and a digest of its bytes; a tracer or another unhashable object by identity."""
+    if isinstance(x, (np.ndarray, jax.Array)) and not isinstance(x, jax.core.Tracer):
+        a = np.ascontiguousarray(x)
+        return a.dtype.str, a.shape, hashlib.blake2b(a.reshape(-1).view(np.uint8), digest_size=16).digest()
+    try:
+        hash(x)
+        return x
+    except TypeError:
+        return "id", id(x)
 
 
 def partition(model: Model) -> tuple[Model, Model]:

@@ -23,6 +23,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from ._assembly import assemble
+from ._eager import compiled_when_eager
 from ._eigen import DEGENERATE_RTOL, eigh
 from ._model import STIFFNESS_BLOCKS, Model
 from ._shift_invert import eigsh
@@ -45,6 +46,7 @@ def use_sparse(model: Model, solver: str = "auto") -> bool:
     return solver == "sparse" or (solver == "auto" and model.viscoelastic is None and model.n_dof > SPARSE_ABOVE)
 
 
+@compiled_when_eager
 def modes(model: Model, n_modes: int, *, n_basis: int | None = None, solver: str = "auto"
           ) -> tuple[Float[Array, " m"], Float[Array, "n m"]]:
     """Eigenvalues λ (rad/s)² and mass-normalised mode shapes of ``model``.

@@ -196,7 +196,10 @@ def _nearest_grid(model: Model, p: np.ndarray, atol: float) -> tuple[int, float]
 def _frames(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Centroid (ne, 3) and rows x, y, n (ne, 3, 3) of the flat projected elements, from
     :func:`jaxfem.elements.shell_frame`."""
-    return X.mean(axis=1), np.asarray(jax.vmap(shell_frame)(jnp.asarray(X)))
+    return X.mean(axis=1), np.asarray(_shell_frames(jnp.asarray(X)))
+
+
+_shell_frames = jax.jit(jax.vmap(shell_frame))  # called once per sensor: compiled once per element shape
 
 
 def _natural(x2: np.ndarray, p2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -89,8 +89,9 @@ def test_healthy_damping_is_rayleigh(beam):
     model, mu, kappa = beam
     f, zeta = damage_damping(model, (), N_MODES, stiffness_reduction=0.5, loss_factor=0.1, mu=mu, kappa=kappa)
     lam, _ = jaxfem.eigh(*jaxfem.assemble(model), N_MODES)
-    np.testing.assert_allclose(f, jaxfem.frequencies_hz(lam), rtol=1e-12)
-    np.testing.assert_allclose(zeta, jaxfem.rayleigh_ratio(jnp.sqrt(lam), mu, kappa), rtol=1e-12)  # eq. (3.40)
+    # one solve in two compiled programs: equal to the solve's rounding (2e-10 at the first mode)
+    np.testing.assert_allclose(f, jaxfem.frequencies_hz(lam), rtol=1e-9)
+    np.testing.assert_allclose(zeta, jaxfem.rayleigh_ratio(jnp.sqrt(lam), mu, kappa), rtol=1e-9)  # eq. (3.40)
     f_c, zeta_c = complex_modes(model, mu, kappa)  # proportional: the complex poles are exact
     np.testing.assert_allclose(f, f_c, rtol=1e-9)
     np.testing.assert_allclose(zeta, zeta_c, rtol=1e-8)
