@@ -27,10 +27,28 @@ def _is_jax(x) -> bool:
     return isinstance(x, jax.Array)
 
 
+def jit_over(fn: Callable, static, name: str | None = None) -> Callable:
+    """``jax.jit`` of ``fn(*args, **kwargs)`` over the dynamic part of its arguments,
+    ``static`` (the rest of ``(args, kwargs)``, as from ``eqx.partition``) bound: the
+    returned function maps the dynamic part to ``fn``'s result, whose JAX arrays come out
+    of the compiled call and whose other values are those of the trace."""
+    out_static = []
+
+    def run(dyn):
+        a, kw = eqx.combine(dyn, static)
+        dyn_out, st = eqx.partition(fn(*a, **kw), _is_jax)
+        out_static.append(st)
+        return dyn_out
+
+    run.__name__ = name or getattr(fn, "__name__", "run")  # names the compilation in JAX's logs
+    jitted = jax.jit(run)
+    return lambda dyn: eqx.combine(jitted(dyn), out_static[0])
+
+
 def compiled_when_eager(fn: Callable) -> Callable:
-    """``fn`` whose eager calls run compiled: JAX arrays among the arguments are traced,
-    everything else (NumPy structure, Python numbers and strings) is static, hashed by
-    content; NumPy arrays and other non-JAX values in the result are returned as traced."""
+    """``fn`` whose eager calls run compiled (:func:`jit_over`): JAX arrays among the
+    arguments are traced, everything else (NumPy structure, Python numbers and strings)
+    is static, hashed by content (:class:`~jaxfem._model.Opaque`)."""
     cache: OrderedDict = OrderedDict()
 
     @functools.wraps(fn)
@@ -43,20 +61,9 @@ def compiled_when_eager(fn: Callable) -> Callable:
         if key in cache:
             cache.move_to_end(key)
         else:
-            out_static = []
-
-            def run(dyn):
-                a, kw = eqx.combine(dyn, static)
-                out = fn(*a, **kw)
-                dyn_out, st = eqx.partition(out, _is_jax)
-                out_static.append(st)
-                return dyn_out
-
-            run.__name__ = fn.__name__
-            cache[key] = (jax.jit(run), out_static)
+            cache[key] = jit_over(fn, static)
             while len(cache) > KEPT:
                 cache.popitem(last=False)
-        jitted, out_static = cache[key]
-        return eqx.combine(jitted(dynamic), out_static[0])
+        return cache[key](dynamic)
 
     return call

@@ -16,6 +16,8 @@ from collections.abc import Callable
 import equinox as eqx
 import jax
 
+from jaxfem._eager import jit_over
+
 
 class Compiled:
     """``eqx.filter_jit(fn)`` (arrays traced, everything else static and hashable) whose
@@ -30,16 +32,5 @@ class Compiled:
         leaves, treedef = jax.tree.flatten(static)
         key = (treedef, tuple(leaves))
         if key not in self._cache:
-            out_static = []
-
-            def run(dyn):
-                out = self._fn(*eqx.combine(dyn, static))
-                dyn_out, st = eqx.partition(out, eqx.is_array)
-                out_static.append(st)
-                return dyn_out
-
-            run.__name__ = getattr(self._fn, "__name__", "run")  # names the compilation in JAX's logs
-            self._cache[key] = (jax.jit(run), out_static)
-        jitted, out_static = self._cache[key]
-        dyn_out = jitted(dynamic)
-        return eqx.combine(dyn_out, out_static[0])
+            self._cache[key] = jit_over(self._fn, (static, {}))
+        return self._cache[key]((dynamic, {}))
