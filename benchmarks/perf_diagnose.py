@@ -121,11 +121,13 @@ BOX_HEIGHT = 0.1  # m: the payload as a box on an RBE3 (``payload="box"``) over 
 
 def payload_cards(model, target: int, payload: str) -> tuple[str, np.ndarray]:
     """Bulk data of the missing payload near floor grid ``target`` and its centre (m):
-    ``grid``: a CONM2 at the grid; ``rbe3``: a CONM2 on an RBE3 over the four grids of
-    the floor shell at ``target`` nearest the barrel's mid-length; ``box``: that CONM2
-    with the inertia of a box standing on the shell (its footprint, :data:`BOX_HEIGHT`
-    high), its CG half that height above the floor — no candidate's form (a
-    :class:`~updating.Payload` has neither offset nor inertia)."""
+    ``grid``: a CONM2 at the grid; ``rbe3``: a CONM2 with the rotary inertia of a flat
+    plate filling its footprint, on an RBE3 over the four grids of the floor shell at
+    ``target`` nearest the barrel's mid-length; ``box``: that CONM2 with the inertia of a
+    box standing on the shell (its footprint, :data:`BOX_HEIGHT` high), its CG half that
+    height above the floor. ``rbe3`` and ``box`` are no candidate's form: a
+    :class:`~updating.Payload` has neither inertia nor offset (on the 2,500-DoF barrel the
+    plate's inertia alone moves elastic modes by up to 4.8 %)."""
     rows = model.node_index([target])
     xyz = np.asarray(model.xyz)
     if payload == "grid":
@@ -147,17 +149,13 @@ def payload_cards(model, target: int, payload: str) -> tuple[str, np.ndarray]:
     return text, centre
 
 
-def run_barrel(control: bool = False, n_dof: int = 33_000, eigensolver: str = "auto", payload: str = "grid") -> dict:
-    """The EC 135-size barrel (``benchmarks.fuselage``) lacking a payload of
-    :data:`BARREL_MASS` kg on its floor (:func:`payload_cards`: ``grid``, ``rbe3`` or ``box``; the
-    truth: the same mesh with those cards, read from its own text), or its control; 20
-    modes (6 suspension, 14 elastic) in y and z at 100 skin grids and in z at 20 floor
-    grids, 0.1 % on frequencies and 1 % on shape components; its row. ``eigensolver``:
-    the diagnosis' (``auto``: sparse at 33k DoFs, which leaves the frequency laws out).
-    Right: a mass ranked first centred within half a frame pitch of the payload."""
+def barrel_case(n_dof: int = 33_000, payload: str = "grid", control: bool = False):
+    """The barrel (``benchmarks.fuselage``, ``n_dof``) and its simulated test (:func:`run_barrel`):
+    (model, test, the payload's floor grid, its centre (m)); ``control``: the test of the
+    model itself."""
     from benchmarks import fuselage
     from identification import Sensors
-    from updating import DiagnoseOptions, Noise, simulate_test
+    from updating import Noise, simulate_test
 
     text = fuselage.barrel_bdf(n_dof)
     model = jaxfem.build_model(read_bdf_text(text))
@@ -172,6 +170,23 @@ def run_barrel(control: bool = False, n_dof: int = 33_000, eigensolver: str = "a
     sensors = Sensors.from_components(np.concatenate([np.repeat(skin, 2), on_floor]),
                                       np.concatenate([np.tile([2, 3], len(skin)), np.full(len(on_floor), 3)]))
     test = simulate_test(truth, sensors, 20, Noise(relative=0.01, frequency=0.002), jax.random.key(0), solver="sparse")
+    return model, test, target, centre
+
+
+def run_barrel(control: bool = False, n_dof: int = 33_000, eigensolver: str = "auto", payload: str = "grid") -> dict:
+    """The EC 135-size barrel (``benchmarks.fuselage``) lacking a payload of
+    :data:`BARREL_MASS` kg on its floor (:func:`payload_cards`: ``grid``, ``rbe3`` or ``box``; the
+    truth: the same mesh with those cards, read from its own text), or its control; 20
+    modes (6 suspension, 14 elastic) in y and z at 100 skin grids and in z at 20 floor
+    grids, 0.1 % on frequencies and 1 % on shape components (:func:`barrel_case`); its row.
+    ``eigensolver``: the diagnosis' (``auto``: sparse at 33k DoFs, which leaves the
+    frequency laws out). Right: a mass ranked first centred within half a frame pitch of
+    the payload."""
+    from benchmarks import fuselage
+    from updating import DiagnoseOptions
+
+    model, test, target, centre = barrel_case(n_dof, payload, control)
+    xyz = np.asarray(model.xyz)
     start = time.perf_counter()
     options = DiagnoseOptions(noise_freq=0.001, noise_shape=0.01, eigensolver=eigensolver)
     report = diagnose(model, test, options=options, progress=_progress).report

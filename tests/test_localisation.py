@@ -54,50 +54,66 @@ def frame():
     return model, np.asarray(lam), np.asarray(C @ phi), C
 
 
-def test_residual_forces_sparse_equals_dense_least_squares(frame):
-    """Reference: the dense minimum-norm least-squares solution of the KKT system
-    [[AᵀA, Cᵀ], [C, 0]] per mode, A = W (K − λ_e M) (the former implementation; on this
-    frame A is well conditioned, cond ≤ 2·10⁵)."""
-    model, lam, phi_e, C = frame
-    elements, grids = residual_forces(model, lam, phi_e, C)
-
+def _dense_reference(model, lam, phi_e, C):
+    """Standardised residual forces by the dense minimum-norm least-squares solution of the
+    KKT system [[AᵀA, Cᵀ], [C, 0]] per mode, A = W (K − λ_e M), for the shape and for each
+    sensor's unit column (the exact noise floor σ² Σ_j F_ij², σ² = ‖φ_e‖²/n_s, plus its mean)."""
     K, M = jaxfem.assemble(model)
     kd, md = np.asarray(K.todense()), np.asarray(M.todense())
     n, ns = kd.shape[0], C.shape[0]
     rotation = model.dofs.labels[:, 1] > 3
     diag = np.abs(np.diag(kd))
     w = np.where(rotation, 1.0 / np.median(diag[rotation]), 1.0 / np.median(diag[~rotation]))
-    f2 = np.zeros(n + 1)
+    z = np.zeros(n + 1)
     for lam_j, shape in zip(lam, phi_e.T):
         a = w[:, None] * (kd - lam_j * md)
         kkt = np.block([[a.T @ a, C.T], [C, np.zeros((ns, ns))]])
-        x = np.linalg.lstsq(kkt, np.concatenate([np.zeros(n), shape]), rcond=None)[0][:n]
-        f2[:n] += (a @ x) ** 2
-    ref_elements = {}
+        rhs = np.vstack([np.zeros((n, ns + 1)), np.column_stack([shape, np.eye(ns)])])
+        f = a @ np.linalg.lstsq(kkt, rhs, rcond=None)[0][:n]
+        floor = shape @ shape / ns * np.sum(f[:, 1:] ** 2, axis=1)
+        z[:n] += f[:, 0] ** 2 / (floor + floor.mean())
+    elements = {}
     for block, idx in _element_dofs(model):
         used = idx < n
-        ref_elements.update(zip(block.ids.tolist(), np.sum(f2[idx] * used, axis=1) / used.sum(axis=1)))
-    ref_grids = {}
-    for (grid, _), v in zip(model.dofs.labels, f2[:n]):
-        ref_grids[int(grid)] = ref_grids.get(int(grid), 0.0) + v
+        elements.update(zip(block.ids.tolist(), np.sum(z[idx] * used, axis=1) / used.sum(axis=1)))
+    grids = {}
+    for (grid, _), v in zip(model.dofs.labels, z[:n]):
+        grids[int(grid)] = grids.get(int(grid), 0.0) + v
+    return elements, grids
 
-    for got, ref in ((elements, ref_elements), (grids, ref_grids)):
-        assert sorted(got) == sorted(ref)
-        keys = sorted(ref)
-        ref_values = np.array([ref[k] for k in keys])
-        np.testing.assert_allclose([got[k] for k in keys], ref_values / ref_values.max(), rtol=1e-6)
+
+def _assert_scores(got, ref, rtol=1e-6):
+    for g, r in zip(got, ref):
+        assert sorted(g) == sorted(r)
+        keys = sorted(r)
+        values = np.array([r[k] for k in keys])
+        np.testing.assert_allclose([g[k] for k in keys], values / values.max(), rtol=rtol)
+
+
+def test_residual_forces_sparse_equals_dense_least_squares(frame, monkeypatch):
+    """Against :func:`_dense_reference` (the former implementation's solve; on this frame A
+    is well conditioned, cond ≤ 2·10⁵), with the noise floor from every sensor's column;
+    with 32 Gaussian probes instead (the default beyond 32 sensors) each score within 50 %."""
+    model, lam, phi_e, C = frame
+    ref = _dense_reference(model, lam, phi_e, C)
+    assert C.shape[0] > localisation.PROBES
+    probed = residual_forces(model, lam, phi_e, C)
+    for g, r in zip(probed, ref):
+        top = max(r.values())
+        np.testing.assert_allclose([g[k] for k in sorted(r)], [r[k] / top for k in sorted(r)], rtol=0.5)
+    monkeypatch.setattr(localisation, "PROBES", C.shape[0])
+    _assert_scores(residual_forces(model, lam, phi_e, C), ref)
 
 
 def test_residual_forces_singular_expansion(frame, monkeypatch):
     """A sensor read twice makes the expansion system singular: under 3,000 DoFs the dense
-    least-squares fallback gives the scores without the duplicate; otherwise a ValueError
-    names the mode."""
+    least-squares fallback gives the dense reference's scores (the doubled sensor's noise
+    averaged); otherwise a ValueError names the mode."""
     model, lam, phi_e, C = frame
     twice_c, twice_phi = np.vstack([C, C[:1]]), np.vstack([phi_e, phi_e[:1]])
-    once = residual_forces(model, lam, phi_e, C)
-    twice = residual_forces(model, lam, twice_phi, twice_c)
-    for a, b in zip(once, twice):
-        np.testing.assert_allclose([b[k] for k in sorted(a)], [a[k] for k in sorted(a)], rtol=1e-6)
+    monkeypatch.setattr(localisation, "PROBES", twice_c.shape[0])
+    _assert_scores(residual_forces(model, lam, twice_phi, twice_c), _dense_reference(model, lam, twice_phi, twice_c),
+                   rtol=1e-3)  # min-norm least squares of a singular system: 8e-5 measured
     monkeypatch.setattr(localisation, "DENSE_FALLBACK_BELOW", 0)
     with pytest.raises(ValueError, match=r"measured mode \d+ \(column \d+ of phi_e\).*singular"):
         residual_forces(model, lam, twice_phi, twice_c)
@@ -106,9 +122,13 @@ def test_residual_forces_singular_expansion(frame, monkeypatch):
 def test_residual_forces_locate_panel_delamination():
     """The 2,520-DoF CFRP panel (25 mm CQUAD4) "measured" with a delamination of radius
     30 mm at (0.15, 0.20) (G1Z, G2Z − 90 %, 4 elements), 8 modes read out of plane at
-    90 grids of the plate: the expansion takes about a second (the dense least squares
-    took minutes and, at cond(A) ≈ 10¹³, pointed at the free corners), and the top four
-    elements are the delaminated ones."""
+    90 grids of the plate, exactly: the expansion takes about a second (the dense least
+    squares took minutes and, at cond(A) ≈ 10¹³, pointed at the free corners); the first
+    element lies within three element sizes of the centre and the four delaminated ones
+    rank among the first twelve (measured: 3rd, 6th, 8th, 10th). (Standardised by the noise floor, stringer elements next to
+    the patch, which no sensor reads, come first on exact data; raw forces ranked the four
+    delaminated elements first here, and on the noisy barrel put skin grids 1.3 m from a
+    payload first.)"""
     model = cfrp_panel.build()
     damaged = cfrp_panel.build(damage=(0.15, 0.2, 0.03))
     lam, phi = jaxfem.modes(damaged, 8)
@@ -129,8 +149,8 @@ def test_residual_forces_locate_panel_delamination():
     centre = dict(zip(quads.ids.tolist(), xyz[np.asarray(quads.nodes)].mean(axis=1)))
     delaminated = {int(e) for e, p, q in zip(quads.ids, quads.pids, damaged.quads.pids) if p != q}
     ranked = sorted(elements, key=elements.get, reverse=True)
-    assert np.hypot(*(centre[ranked[0]][:2] - [0.15, 0.2])) < 0.06
-    assert set(ranked[:4]) == delaminated
+    assert np.hypot(*(centre[ranked[0]][:2] - [0.15, 0.2])) < 0.075
+    assert delaminated <= set(ranked[:12])
 
 
 def test_the_screen_leaves_out_the_shape_rows_of_modes_that_mix():
@@ -159,3 +179,21 @@ def test_the_screen_leaves_out_the_shape_rows_of_modes_that_mix():
     rho = s.element_reduction("m")
     assert rho[1] == pytest.approx(1.0, abs=1e-12) and rho[2] == pytest.approx(every[2])
     assert s.step(true[:, None])[0] == pytest.approx(1.0, abs=1e-12)
+
+
+def test_standardised_residual_forces_find_a_payload_on_an_rbe3():
+    """The 2,500-DoF barrel lacking a 20 kg payload hung on an RBE3 over a floor shell, 20
+    modes at 220 noisy channels (:func:`benchmarks.perf_diagnose.barrel_case`): the grid
+    scoring highest lies on the payload's shell, and the first three within 0.35 m of its
+    centre (raw forces put skin grids 1.3 m away first and the payload's grid 70th: noisy
+    sensors on stiff skin and the suspension modes, whose inertia forces are small)."""
+    from benchmarks.perf_diagnose import barrel_case
+
+    model, test, target, centre = barrel_case(2_500, "rbe3")
+    C, _ = observation_matrix(model, test.sensors)
+    lam = (2 * np.pi * np.asarray(test.frequencies_hz)) ** 2
+    _, grids = residual_forces(model, lam, np.asarray(test.shapes), C)
+    ranked = sorted(grids, key=grids.get, reverse=True)
+    xyz = np.asarray(model.xyz)
+    assert np.linalg.norm(xyz[model.node_index(ranked[:1])[0]] - centre) < 0.2  # a grid of its shell
+    assert np.all(np.linalg.norm(xyz[model.node_index(ranked[:3])] - centre, axis=1) < 0.35)

@@ -400,6 +400,18 @@ def shortlist(cands: list[Candidate], best: int, per_kind: int, kinds, within: f
     return list(dict.fromkeys(short))
 
 
+POINT_KINDS = ("added_mass", "boundary_spring", "payload")  # the candidates held at a grid or on its shells
+
+
+def at_best_grid(cands: list[Candidate], region: list[int], node_scores: dict[int, float]) -> list[Candidate]:
+    """The added mass and spring at the region's best-localised grid and the payloads on
+    its shells, whatever they screen: a heavy mass brings its own mode into the band,
+    beyond the screen's linear step (a 20 kg payload on the 2,500-DoF barrel's floor
+    screened below candidates on the skin while the residual forces put it first)."""
+    best = max(region, key=lambda g: node_scores.get(g, 0.0), default=None)
+    return [c for c in cands if c.reference.kind in POINT_KINDS and best in c.reference.nodes]
+
+
 def group_screens(cands: list[Candidate]) -> dict[int, float]:
     """Best screening ρ of a whole property group's stiffness or mass, by pid."""
     out: dict[int, float] = {}

@@ -3,7 +3,7 @@
 1. **Baseline**: the model, updated with the engineer's parameters if any (thesis §3.2).
 2. **Localisation** by two independent methods: (a) residual forces of the measured
    modes expanded to the model (Friswell & Mottershead 1995, §8,
-   :func:`residual_forces`), (b) sensitivity — the share ρ of the residual that one
+   :func:`residual_forces`), standardised by what the shape noise alone leaves, (b) sensitivity — the share ρ of the residual that one
    Gauss–Newton step in a single element's (group's) stiffness or mass removes (ibid.
    §7). Together they define the localised region; the residual forces only where the
    shapes differ beyond noise (χ² per row ≥ ``SHAPE_SIGNAL``), since they are expanded
@@ -13,7 +13,8 @@
    support in it — all on one model (:func:`~updating._candidates.augment`), so that all
    fits share one compiled solver. They are screened by the linearised residual
    reduction ρ (joints and supports by a coarse scan of their stiffness); per kind those
-   within ``within`` of the kind's best are fitted (Optimistix Levenberg–Marquardt). On
+   within ``within`` of the kind's best are fitted (Optimistix Levenberg–Marquardt), and
+   the added mass, spring and payloads at the best-localised grid whatever they screen. On
    shells, patches about the region's shell grids (a delamination, a local membrane or
    bending stiffness, distributed mass; radii from a ladder), their centre and radius
    then refined by hill-climbing.
@@ -47,6 +48,7 @@ from ._candidates import (
     PATCHES,
     Candidate,
     Screen,
+    at_best_grid,
     augment,
     group_candidates,
     group_screens,
@@ -258,7 +260,8 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
         c.screen, c.theta0 = 1 - float(np.min(costs)) / base["cost"], np.atleast_1d(grid[int(np.argmin(costs))])
         cands.append(c)
     node_score = combine(node_a, node_b)
-    short = shortlist(cands, options.shortlist, options.per_kind, kinds, options.within)
+    short = list(dict.fromkeys(shortlist(cands, options.shortlist, options.per_kind, kinds, options.within)
+                               + at_best_grid(cands, nodes, node_nominal)))
     with_masks(short, aug)
     say(f"{len(cands)} candidates screened; fitting {len(short)} ({elapsed()})")
 
