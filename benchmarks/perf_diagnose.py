@@ -22,7 +22,8 @@ reduced models (:mod:`updating._reduced`). Right: a mass (added, payload or dist
 ranked first, centred within half a frame pitch of the payload.
 
 Usage: ``python -m benchmarks.perf_diagnose [--cases NAME ...] [--panel] [--barrel [--payload grid|rbe3|box]
-[--barrel-dof N]] [--json OUT]``.
+[--barrel-dof N]] [--ray local|ADDRESS] [--json OUT]`` (``--ray``: the ``--cases`` once more, their
+candidate fits on 2 Ray workers, for the speed-up against one process in the same run).
 
 **Measured** (``--cases --panel --barrel --payload grid``, one run, 2-core x86-64, jax 0.10.2; 2026-11-24):
 
@@ -57,15 +58,19 @@ from jaxfem.io import read_bdf_text  # noqa: E402
 from updating import diagnose  # noqa: E402
 
 
-def run_case(case) -> dict:
-    """Diagnose one case; its row of the table."""
+def run_case(case, ray: str | None = None) -> dict:
+    """Diagnose one case (``ray``: its candidate fits on that Ray cluster, ``local``: 2
+    workers); its row of the table."""
+    from updating import DiagnoseOptions
+
     text, _, _, _ = nominal(case)
     model = jaxfem.build_model(read_bdf_text(text))
     test = measure(case)
     start = time.perf_counter()
-    report = diagnose(model, test, parameters(case)).report
+    report = diagnose(model, test, parameters(case), options=DiagnoseOptions(ray=ray, ray_workers=2 if ray else None)).report
     seconds = time.perf_counter() - start
-    return _row(case.name, case.description, model, test, report, seconds, found(report, case))
+    name = case.name + (f" (Ray {ray}, 2 workers)" if ray else "")
+    return _row(name, case.description, model, test, report, seconds, found(report, case))
 
 
 def _row(case: str, hidden: str, model, test, report: dict, seconds: float, right: bool, **more) -> dict:
@@ -125,9 +130,9 @@ def payload_cards(model, target: int, payload: str) -> tuple[str, np.ndarray]:
     plate filling its footprint, on an RBE3 over the four grids of the floor shell at
     ``target`` nearest the barrel's mid-length; ``box``: that CONM2 with the inertia of a
     box standing on the shell (its footprint, :data:`BOX_HEIGHT` high), its CG half that
-    height above the floor. ``rbe3`` and ``box`` are no candidate's form: a
-    :class:`~updating.Payload` has neither inertia nor offset (on the 2,500-DoF barrel the
-    plate's inertia alone moves elastic modes by up to 4.8 %)."""
+    height above the floor. ``rbe3`` is the form of the :class:`~updating.Payload`
+    candidate; ``box`` is no candidate's form (a payload's CG lies on its footprint, its
+    inertia is a plate's)."""
     rows = model.node_index([target])
     xyz = np.asarray(model.xyz)
     if payload == "grid":
@@ -211,6 +216,7 @@ def main() -> None:
                         help="the barrel's payload: a CONM2 at a grid, on an RBE3 over a shell, or a box there "
                              "(payload_cards)")
     parser.add_argument("--barrel-dof", type=int, default=33_000, help="the barrel's size (DoFs)")
+    parser.add_argument("--ray", help="also the --cases with their candidate fits on Ray (local: 2 workers here)")
     parser.add_argument("--json", help="write the rows as JSON")
     args = parser.parse_args()
     print(f"# {platform.processor() or platform.machine()}, {os.cpu_count()} cores, jax {jax.__version__}")
@@ -218,6 +224,8 @@ def main() -> None:
           f"{'χ²/row':>14} {'s':>5}")
     rows = []
     runs = [lambda case=case: run_case(case) for case in CASES if case.name in args.cases]
+    if args.ray:  # the same cases again, their candidate fits on Ray
+        runs += [lambda case=case: run_case(case, args.ray) for case in CASES if case.name in args.cases]
     if args.panel:
         runs += [run_panel, lambda: run_panel(control=True)]
     if args.barrel:

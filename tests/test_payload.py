@@ -1,5 +1,5 @@
 """A payload on an interpolation element (:class:`updating.Payload`): a CONM2 at the
-centroid of a footprint of grids, carried by an RBE3 on their translations
+centroid of a footprint of grids with a plate's inertia, carried by an RBE3 on their translations
 (:func:`jaxfem._edit.add_rbe3`): the same matrices as the bulk-data cards, the same as a
 dormant element woken by the diagnosis' mask, clear errors, and no wider element blocks."""
 
@@ -42,11 +42,18 @@ def _dense(model):
 
 def test_payload_equals_the_bulk_data_rbe3_and_conm2(model, text):
     """The effect's matrices are those of GRID + RBE3 (123 of four grids) + CONM2 read from
-    bulk data; the structure's mass grows by m, its lowest elastic frequency falls."""
+    bulk data, the CONM2 with a uniform a × b plate's inertia (m b²/12, m a²/12,
+    m (a² + b²)/12 about x, y, z); the structure's mass grows by m, its lowest elastic
+    frequency falls."""
     grids = _shell(model)
-    x = np.asarray(model.xyz)[model.node_index(grids)].mean(axis=0)
+    xyz = np.asarray(model.xyz)[model.node_index(grids)]
+    x = xyz.mean(axis=0)
+    a, b = np.ptp(xyz[:, 0]), np.ptp(xyz[:, 1])  # the shell's sides along x and y
+    inertia = ",".join(repr(float(v)) for v in (0.5 * b * b / 12, 0.0, 0.5 * a * a / 12, 0.0, 0.0,
+                                                0.5 * (a * a + b * b) / 12))
     cards = (f"GRID,99,,{float(x[0])!r},{float(x[1])!r},{float(x[2])!r}\n"
-             f"RBE3,98,,99,123456,1.,123,{grids[0]},{grids[1]}\n,{grids[2]},{grids[3]}\nCONM2,97,99,,0.5\n")
+             f"RBE3,98,,99,123456,1.,123,{grids[0]},{grids[1]}\n,{grids[2]},{grids[3]}\n"
+             f"CONM2,97,99,,0.5\n,{inertia}\n")
     truth = jaxfem.build_model(read_bdf_text(text + cards))
     added = model.with_effect(Payload(nodes=tuple(grids), m=0.5))
     (K1, M1), (K2, M2) = _dense(truth), _dense(added)
