@@ -3,11 +3,11 @@
 1. **Baseline**: the model, updated with the engineer's parameters if any (thesis §3.2).
 2. **Localisation** by two independent methods: (a) residual forces of the measured
    modes expanded to the model (Friswell & Mottershead 1995, §8,
-   :func:`residual_forces`), standardised by what the shape noise alone leaves, (b) sensitivity — the share ρ of the residual that one
-   Gauss–Newton step in a single element's (group's) stiffness or mass removes (ibid.
-   §7). Together they define the localised region; the residual forces only where the
-   shapes differ beyond noise (χ² per row ≥ ``SHAPE_SIGNAL``), since they are expanded
-   from the shapes alone.
+   :func:`residual_forces`), standardised by what the shape noise alone leaves there,
+   (b) sensitivity — the share ρ of the residual that one Gauss–Newton step in a single
+   element's (group's) stiffness or mass removes (ibid. §7). Together they define the
+   localised region; the residual forces only where the shapes differ beyond noise (χ²
+   per row ≥ ``SHAPE_SIGNAL``), since they are expanded from the shapes alone.
 3. **Candidates** of every kind (:mod:`updating._effects`): group factors and laws, an
    added mass and springs to ground at *every* grid of the region, and every joint or
    support in it — all on one model (:func:`~updating._candidates.augment`), so that all
