@@ -71,7 +71,8 @@ def run_case(case, ray: str | None = None) -> dict:
     model = jaxfem.build_model(read_bdf_text(text))
     test = measure(case)
     start = time.perf_counter()
-    report = diagnose(model, test, parameters(case), options=DiagnoseOptions(ray=ray, ray_workers=2 if ray else None)).report
+    options = DiagnoseOptions(ray=ray, ray_workers=2 if ray else None)
+    report = diagnose(model, test, parameters(case), options=options).report
     seconds = time.perf_counter() - start
     name = case.name + (f" (Ray {ray}, 2 workers)" if ray else "")
     return _row(name, case.description, model, test, report, seconds, found(report, case))

@@ -119,16 +119,27 @@ def test_residual_forces_singular_expansion(frame, monkeypatch):
         residual_forces(model, lam, twice_phi, twice_c)
 
 
+def test_a_mode_read_as_zero_adds_no_force(frame):
+    """A zero measured shape has a zero noise floor and zero forces: its modes add nothing
+    (no 0/0), the other modes' scores are unchanged."""
+    model, lam, phi_e, C = frame
+    zero = phi_e.copy()
+    zero[:, 0] = 0.0
+    with_zero, without = residual_forces(model, lam, zero, C), residual_forces(model, lam[1:], phi_e[:, 1:], C)
+    for a, b in zip(with_zero, without):
+        np.testing.assert_allclose([a[k] for k in sorted(b)], [b[k] for k in sorted(b)], rtol=1e-12)
+
+
 def test_residual_forces_locate_panel_delamination():
     """The 2,520-DoF CFRP panel (25 mm CQUAD4) "measured" with a delamination of radius
     30 mm at (0.15, 0.20) (G1Z, G2Z − 90 %, 4 elements), 8 modes read out of plane at
     90 grids of the plate, exactly: the expansion takes about a second (the dense least
     squares took minutes and, at cond(A) ≈ 10¹³, pointed at the free corners); the first
     element lies within three element sizes of the centre and the four delaminated ones
-    rank among the first twelve (measured: 3rd, 6th, 8th, 10th). (Standardised by the noise floor, stringer elements next to
-    the patch, which no sensor reads, come first on exact data; raw forces ranked the four
-    delaminated elements first here, and on the noisy barrel put skin grids 1.3 m from a
-    payload first.)"""
+    rank among the first twelve (measured: 3rd, 6th, 8th, 10th). (Standardised by the
+    noise floor, stringer elements next to the patch, which no sensor reads, come first on
+    exact data; raw forces ranked the four delaminated elements first here, and on the
+    noisy barrel put skin grids 1.3 m from a payload first.)"""
     model = cfrp_panel.build()
     damaged = cfrp_panel.build(damage=(0.15, 0.2, 0.03))
     lam, phi = jaxfem.modes(damaged, 8)

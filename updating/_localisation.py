@@ -108,7 +108,8 @@ def residual_forces(model: Model, lam_e, phi_e, C) -> tuple[dict[int, float], di
     w = np.where(rotation, 1.0 / np.median(diag[rotation]) if rotation.any() else 1.0,
                  1.0 / np.median(diag[~rotation]) if (~rotation).any() else 1.0)
     cs = scipy.sparse.csr_matrix(C)
-    probes = np.eye(ns) if ns <= PROBES else np.random.default_rng(0).standard_normal((ns, PROBES))
+    # Σ_j F_ij² = ‖F_i P‖² for P = I, or its expectation for Gaussian P with variance 1/PROBES
+    probes = np.eye(ns) if ns <= PROBES else np.random.default_rng(0).standard_normal((ns, PROBES)) / np.sqrt(PROBES)
     per_dof = np.zeros(n + 1)  # last entry: padding index
     order = None
     shapes = np.asarray(phi_e, dtype=np.float64).T
@@ -116,8 +117,9 @@ def residual_forces(model: Model, lam_e, phi_e, C) -> tuple[dict[int, float], di
         a = (scipy.sparse.diags(w) @ (ks - lam * ms)).tocsc()
         order = _pair_order(a, cs) if order is None else order
         f = a @ _expanded(a, cs, np.column_stack([shape, probes]), mode, order)
-        floor = (shape @ shape / ns) * np.sum(f[:, 1:] ** 2, axis=1) / (1 if ns <= PROBES else PROBES)
-        per_dof[:n] += f[:, 0] ** 2 / (floor + floor.mean())
+        floor = (shape @ shape / ns) * np.sum(f[:, 1:] ** 2, axis=1)
+        den = floor + floor.mean()  # zero only for a zero shape, whose forces are zero too
+        per_dof[:n] += np.divide(f[:, 0] ** 2, den, out=np.zeros(n), where=den > 0)
     scores: dict[int, float] = {}
     for block, idx in _element_dofs(model):
         used = idx < model.n_dof
