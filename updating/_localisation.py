@@ -16,12 +16,11 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
-import scipy.sparse
 import scipy.sparse.linalg
 
 import jaxfem
 from jaxfem import STIFFNESS_BLOCKS, STRUCTURAL_BLOCKS, Model
-from jaxfem._assembly import _sparse_block
+from jaxfem import _sparse
 
 from ._compiled import Compiled
 from ._residuals import Problem, residuals
@@ -68,58 +67,62 @@ def _stacked_with_jacobian(theta, problem: Problem):
     return _stacked(theta, problem), jax.jacfwd(_stacked)(theta, problem)
 
 
-PROBES = 32
-"""Noise probes per mode for the noise floor of the residual forces (:func:`residual_forces`);
-with at most this many sensors, each sensor's column instead (the floor exact)."""
-
-
 def residual_forces(model: Model, lam_e, phi_e, C) -> tuple[dict[int, float], dict[int, float]]:
     """Method (b): standardised residual-force indicator per element id.
 
     Each measured shape is expanded to all DoFs with the least residual force that still
-    reproduces the measurement, ``min ‖W (K − λ_e M) φ̃‖ subject to C φ̃ = φ_e`` (W: the
-    inverse of the median stiffness diagonal of translations and of rotations, so that
-    forces and moments mix as displacements do, without amplifying soft parts); the
-    remaining force ``f = W (K − λ_e M) φ̃`` is where the model cannot be in
-    equilibrium with the test. f is linear in the measured shape, ``f = F φ_e``, so noise
-    of σ per sensor puts the floor ``σ² Σ_j F_ij²`` at DoF i (σ = ‖φ_e‖/√n_s, the same
-    relative noise in every mode; F's row norms from the sensors' columns, or estimated
-    from :data:`PROBES` Gaussian probes with more sensors). A DoF scores
-    Σ_modes f_i² / (floor_i + mean floor) — the mean keeps DoFs the noise hardly reaches
-    from being amplified (on a frame with exact data, a bush's unmeasured grid came
-    first) —, an element the mean over its DoFs; both are scaled to a maximum of 1. Raw
-    forces point at stiff places a noisy sensor must bend and at the suspension modes,
-    whose inertia forces are small.
+    reproduces the measurement, ``min ‖f‖, f = W (K − λ_e M) φ̃, subject to C φ̃ = φ_e``
+    (W: the inverse of the median stiffness diagonal of translations and of rotations, so
+    that forces and moments mix as displacements do, without amplifying soft parts); f is
+    where the model cannot be in equilibrium with the test. With φ̃ = A⁻¹ W⁻¹ f
+    (A = K − λ_e M, symmetric) the constraint reads ``Z f = φ_e``, ``Zᵀ = W⁻¹ A⁻¹ Cᵀ``
+    (n × n_s: one factorisation of A and n_s solves), and f is its minimum-norm solution
+    ``f = F φ_e``, F = Z⁺ = U S⁻¹ Vᵀ from the thin SVD Zᵀ = U S Vᵀ (a sensor read twice
+    only drops a singular value). Noise of σ per sensor puts the floor
+    ``σ² Σ_j F_ij² = σ² Σ_k U_ik² / S_k²`` at DoF i (σ = ‖φ_e‖/√n_s, the same relative
+    noise in every mode). A DoF scores Σ_modes f_i² / (floor_i + mean floor) — the mean
+    keeps DoFs the noise hardly reaches from being amplified (on a frame with exact data, a
+    bush's unmeasured grid came first) —, an element the mean over its DoFs; both are scaled
+    to a maximum of 1. Raw forces point at stiff places a noisy sensor must bend and at the
+    suspension modes, whose inertia forces are small.
 
     **Arguments:** the model; measured eigenvalues λ_e (rad/s)² (m,), real shapes at the
     sensors ``phi_e`` (n_s, m), the observation matrix ``C`` (n_s, n_dof).
     **Returns:** ({element id: indicator}, {grid id: Σ over its solved DoFs}).
 
-    Sparse throughout (one sparse LU per mode, see :func:`_expanded`): no n × n array.
+    Sparse: one symmetric factorisation of A per mode (:mod:`jaxfem._sparse`, PARDISO or
+    SuperLU), no n × n array; memory n × n_s per mode.
     """
     K, M = jaxfem.assemble(model)
     n = model.n_dof
-    every = np.arange(n)
-    ks, ms = _sparse_block(K, every).tocsr(), _sparse_block(M, every).tocsr()
+    pat = _sparse.pattern(tuple(K.indices) + tuple(M.indices), K.n)
+    kd = pat.values(K.blocks, pat.slots[:len(K.blocks)])
+    md = pat.values(M.blocks, pat.slots[len(K.blocks):])
+    backend = _sparse.resolve_backend("auto")
     C = np.asarray(C, dtype=np.float64)
     ns = C.shape[0]
     rotation = model.dofs.labels[:, 1] > 3
-    diag = np.abs(ks.diagonal())
+    ka = pat.matrix(kd)
+    diag = np.abs(ka.diagonal())
     w = np.where(rotation, 1.0 / np.median(diag[rotation]) if rotation.any() else 1.0,
                  1.0 / np.median(diag[~rotation]) if (~rotation).any() else 1.0)
-    cs = scipy.sparse.csr_matrix(C)
-    # Σ_j F_ij² = ‖F_i P‖² for P = I, or its expectation for Gaussian P with variance 1/PROBES
-    probes = np.eye(ns) if ns <= PROBES else np.random.default_rng(0).standard_normal((ns, PROBES)) / np.sqrt(PROBES)
+    ct = np.ascontiguousarray(C.T)
     per_dof = np.zeros(n + 1)  # last entry: padding index
-    order = None
     shapes = np.asarray(phi_e, dtype=np.float64).T
     for mode, (lam, shape) in enumerate(zip(np.asarray(lam_e, dtype=np.float64), shapes)):
-        a = (scipy.sparse.diags(w) @ (ks - lam * ms)).tocsc()
-        order = _pair_order(a, cs) if order is None else order
-        f = a @ _expanded(a, cs, np.column_stack([shape, probes]), mode, order)
-        floor = (shape @ shape / ns) * np.sum(f[:, 1:] ** 2, axis=1)
+        data = kd - lam * md
+        try:
+            x = _solved(_sparse.new_factor(pat, backend, data, definite=False), pat.matrix(data), ct)
+        except ValueError as err:
+            raise ValueError(f"residual forces, measured mode {mode + 1} (column {mode} of phi_e, "
+                             f"{np.sqrt(max(lam, 0.0)) / (2 * np.pi):.6g} Hz): {err}") from None
+        u, s, vt = np.linalg.svd(x / w[:, None], full_matrices=False)
+        keep = s > s[0] * max(n, ns) * np.finfo(float).eps  # a sensor read twice: a zero singular value
+        u, s, vt = u[:, keep], s[keep], vt[keep]
+        f = u @ ((vt @ shape) / s)
+        floor = (shape @ shape / ns) * np.sum((u / s) ** 2, axis=1)
         den = floor + floor.mean()  # zero only for a zero shape, whose forces are zero too
-        per_dof[:n] += np.divide(f[:, 0] ** 2, den, out=np.zeros(n), where=den > 0)
+        per_dof[:n] += np.divide(f ** 2, den, out=np.zeros(n), where=den > 0)
     scores: dict[int, float] = {}
     for block, idx in _element_dofs(model):
         used = idx < model.n_dof
@@ -131,90 +134,24 @@ def residual_forces(model: Model, lam_e, phi_e, C) -> tuple[dict[int, float], di
     return _unit(scores), _unit(nodes)
 
 
-DENSE_FALLBACK_BELOW = 3000
-"""DoF count below which a mode whose expansion system is singular is solved by the dense
-least-squares fallback instead of raising a ``ValueError``."""
-
-
-def _expanded(a, cs, shape: np.ndarray, mode: int, order: np.ndarray) -> np.ndarray:
-    """φ̃ minimising ‖a φ̃‖ subject to ``cs φ̃ = shape`` (a: sparse n × n, cs: sparse n_s × n;
-    ``shape`` (n_s, k): k right-hand sides, one factorisation).
-
-    The optimality (KKT) conditions in augmented form, with the residual force
-    ``r = a φ̃`` as an unknown, ``[[−I, a, 0], [aᵀ, 0, csᵀ], [0, cs, 0]] [r; φ̃; μ] = [0; 0; shape]``
-    (eliminating r gives the normal form ``[[aᵀa, csᵀ], [cs, 0]] [φ̃; μ] = [0; shape]``):
-    its condition number is that of a, about 10¹³ on a shell where λ_e lies next to an
-    eigenvalue of the model, not the square, at which least squares on the normal form
-    misses the minimum by orders of magnitude. One sparse LU (SuperLU) in the fill-reducing
-    ``order`` of :func:`_pair_order` with diagonal pivots, then iterative refinement; when
-    that LU fails or its solution does not satisfy the system, one with partial pivoting.
-    When the system is singular (C of deficient row rank, e.g. a sensor read twice, or
-    [a; C] of deficient column rank): the minimum-norm least-squares solution of the dense normal form for models
-    under :data:`DENSE_FALLBACK_BELOW` DoFs, else a ``ValueError``.
-    """
-    n, ns = a.shape[1], cs.shape[0]
-    aug = scipy.sparse.bmat([[-scipy.sparse.identity(n), a, None], [a.T, None, cs.T], [None, cs, None]],
-                            format="csr")
-    rhs = np.concatenate([np.zeros((2 * n, shape.shape[1])), shape])
-    permuted = aug[order][:, order].tocsc()
-    sol, why = _lu_solve(permuted, rhs[order], permc_spec="NATURAL", diag_pivot_thresh=0.0,
-                         options={"SymmetricMode": True})
-    if sol is not None:
-        return sol[np.argsort(order)][n:2 * n]
-    sol, why = _lu_solve(aug.tocsc(), rhs)
-    if sol is not None:
-        return sol[n:2 * n]
-    if n < DENSE_FALLBACK_BELOW:
-        ad = a.toarray()
-        kkt = np.block([[ad.T @ ad, cs.T.toarray()], [cs.toarray(), np.zeros((ns, ns))]])
-        return np.linalg.lstsq(kkt, np.concatenate([np.zeros((n, shape.shape[1])), shape]), rcond=None)[0][:n]
-    raise ValueError(
-        f"residual forces, measured mode {mode + 1} (column {mode} of phi_e): the expansion system "
-        f"is singular ({why}). The sensors must read independent DoFs and, with the model, "
-        f"determine the expanded shape ({n} DoFs, {ns} sensors; no dense fallback at "
-        f"{DENSE_FALLBACK_BELOW} DoFs or more)."
-    )
-
-
-def _lu_solve(mat, rhs: np.ndarray, **options) -> tuple[np.ndarray | None, str]:
-    """``mat⁻¹ rhs`` by SuperLU and up to three refinement steps, or (None, why) when the
-    factorisation fails or the solution is not finite or does not satisfy the system."""
-    try:
-        lu = scipy.sparse.linalg.splu(mat, **options)
-    except RuntimeError as err:  # "Factor is exactly singular"
-        return None, f"SuperLU: {err}"
-    sol = lu.solve(rhs)
-    scale = scipy.sparse.linalg.norm(mat, np.inf)
+def _solved(factor, a, b: np.ndarray) -> np.ndarray:
+    """``a⁻¹ b`` by ``factor`` and up to four steps of iterative refinement (PARDISO's
+    perturbed pivots, SuperLU's rounding at λ_e next to an eigenvalue of the model); a
+    ``ValueError`` when the solution is not finite or does not satisfy the system."""
+    x = factor.solve(b)
+    scale = scipy.sparse.linalg.norm(a, np.inf)
     big = lambda v: np.max(np.abs(v), axis=0)  # noqa: E731  (per right-hand side)
     for _ in range(4):
-        if not np.all(np.isfinite(sol)):
-            return None, "non-finite solution"
-        res = rhs - mat @ sol
-        if np.all(big(res) <= 1e-12 * (scale * big(sol) + big(rhs))):
-            return sol, ""
-        sol = sol + lu.solve(res)
-    if np.all(np.isfinite(sol)) and np.all(big(rhs - mat @ sol) <= 1e-8 * (scale * big(sol) + big(rhs))):
-        return sol, ""
-    return None, "the LU solution does not satisfy the system"
+        if not np.all(np.isfinite(x)):
+            break
+        res = b - a @ x
+        if np.all(big(res) <= 1e-12 * (scale * big(x) + big(b))):
+            return x
+        x = x + factor.solve(res)
+    if np.all(np.isfinite(x)) and np.all(big(b - a @ x) <= 1e-8 * (scale * big(x) + big(b))):
+        return x
+    raise ValueError("K − λ_e M is singular to working precision (λ_e an eigenvalue of the model)")
 
-
-def _pair_order(a, cs) -> np.ndarray:
-    """Order of the unknowns [r; φ̃; μ] of :func:`_expanded` for an LU with diagonal pivots:
-    DoF k as the pair (r_k, φ̃_k), the pairs in the minimum-degree order of the graph of
-    a + aᵀ + csᵀcs (SuperLU's MMD, read off the factorisation of a diagonally dominant
-    matrix of that pattern), each multiplier μ_j after the last DoF that sensor j reads.
-    Pivoting on r_k (−1), then φ̃_k (the Schur complement aᵀa is positive definite), then
-    μ (negative definite) needs no row interchanges; fill as that of a, not of aᵀa."""
-    n, ns = a.shape[1], cs.shape[0]
-    pattern = (abs(a) + abs(a).T + abs(cs.T @ cs)).tocsc()
-    pattern.data[:] = 1.0
-    proxy = (pattern + scipy.sparse.diags(np.full(n, float(n)))).tocsc()
-    pos = scipy.sparse.linalg.splu(proxy, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                                   options={"SymmetricMode": True}).perm_c
-    csr = cs.tocsr()
-    last = np.array([pos[csr.indices[csr.indptr[j]:csr.indptr[j + 1]]].max(initial=-1) for j in range(ns)])
-    key = np.concatenate([2.0 * pos, 2.0 * pos + 1, 2.0 * last + 1.5])
-    return np.argsort(key, kind="stable")
 
 def _unit(scores: dict) -> dict:
     top = max(scores.values(), default=0.0)
