@@ -135,9 +135,8 @@ def payload_cards(model, target: int, payload: str) -> tuple[str, np.ndarray]:
     plate filling its footprint, on an RBE3 over the four grids of the floor shell at
     ``target`` nearest the barrel's mid-length; ``box``: that CONM2 with the inertia of a
     box standing on the shell (its footprint, :data:`BOX_HEIGHT` high), its CG half that
-    height above the floor. ``rbe3`` is the form of the :class:`~updating.Payload`
-    candidate; ``box`` is no candidate's form (a payload's CG lies on its footprint, its
-    inertia is a plate's)."""
+    height above the floor: both forms of the :class:`~updating.Payload` candidate (height
+    0 and 5 cm), written as bulk data and read on their own."""
     rows = model.node_index([target])
     xyz = np.asarray(model.xyz)
     if payload == "grid":

@@ -168,16 +168,18 @@ def add_ground_springs(model: Model, node: int, k: Sequence[float], components: 
     return eqx.tree_at(lambda m: m.springs, model, new), eids
 
 
-def add_mass(model: Model, node: int, m: float, eid: int | None = None, inertia=None) -> tuple[Model, int]:
-    """A point mass ``m`` (kg, CONM2 without offset) at grid ``node``; ``inertia``: its
-    3 × 3 tensor about the grid (kg·m², basic axes; default none)."""
+def add_mass(model: Model, node: int, m: float, eid: int | None = None, inertia=None,
+             offset=None) -> tuple[Model, int]:
+    """A point mass ``m`` (kg, CONM2) at grid ``node``; ``inertia``: its 3 × 3 tensor
+    about its CG (kg·m², basic axes; default none); ``offset``: CG minus grid (m, basic
+    axes; default none)."""
     row = int(model.node_index([node])[0])
     c = model.masses
     eid = _new_id(model.element_ids(), 1) if eid is None else int(eid)
     tensor = np.zeros((1, 3, 3)) if inertia is None else np.asarray(inertia, dtype=np.float64).reshape(1, 3, 3)
     new = Masses(
         ids=np.append(c.ids, eid), nodes=np.append(c.nodes, row),
-        m=_append(c.m, [m]), offset=_append(c.offset, np.zeros((1, 3))),
+        m=_append(c.m, [m]), offset=_append(c.offset, np.reshape(np.zeros(3) if offset is None else offset, (1, 3))),
         inertia=_append(c.inertia, tensor), m_scale=_append(c.m_scale, [1.0]),
     )
     return eqx.tree_at(lambda mm: mm.masses, model, new), eid

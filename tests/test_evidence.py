@@ -49,23 +49,25 @@ def test_verdict_says_what_to_do_or_that_nothing_single_explains_the_data():
     assert verdict(_report("none_needed", 0.9)).startswith("No extra effect is warranted")
 
 
-def test_scan_start_refines_a_one_factor_scan_about_its_best_point(monkeypatch):
+def test_scan_start_refines_the_first_factor_about_the_best_point(monkeypatch):
     """A heavy added mass pairs every mode only in a narrow valley (the 33k barrel's 20 kg:
     θ ≈ 0.9 ± 0.2, between the grid's 0 and 1.5): the scan is refined about its best point
-    and starts there; a scan of two factors (a joint's) is not refined."""
+    and starts there; a scan of two factors is refined along the first (a 20 kg box's
+    mass, its CG height held: the valley is e^±0.2 wide in the mass)."""
     from updating import _evidence
 
     calls = []
 
     def costs(fits, problem, ext, theta_b, grid, solver):
         calls.append(len(grid))
-        return np.array([1.0 if np.ndim(t) == 0 and abs(t - 0.9) < 0.2 else 500.0 + np.sum(np.abs(np.subtract(t, 1.5)))
-                         for t in grid])
+        return np.array([1.0 if np.ndim(t) == 0 and abs(t - 0.9) < 0.2
+                         or np.ndim(t) == 1 and abs(t[0] - 2.0) < 0.2 and t[1] == 0.3
+                         else 500.0 + np.sum(np.abs(np.subtract(t, 1.5))) for t in grid])
 
     monkeypatch.setattr(_evidence, "scan_costs", costs)
     assert _evidence.scan_start(None, None, None, np.zeros(0), (0.0, -1.5, -3.0, 1.5)) == pytest.approx([1.0])
     assert calls == [4, 4]
     calls.clear()
-    np.testing.assert_array_equal(_evidence.scan_start(None, None, None, np.zeros(0), ((0.0, 0.0), (1.5, 1.5))),
-                                  [1.5, 1.5])
-    assert calls == [2]
+    np.testing.assert_array_equal(_evidence.scan_start(None, None, None, np.zeros(0), ((0.0, 0.0), (1.5, 0.3))),
+                                  [2.0, 0.3])
+    assert calls == [2, 4]

@@ -104,14 +104,14 @@ def scan_start(fits: Fits, problem: Problem, ext: Extension, theta_b: np.ndarray
                solver: AbstractEigensolver = Direct()) -> np.ndarray:
     """Best starting θ of an effect on a coarse grid: a fit from the reference alone can
     stall where modes swap partners on the way (a much softer joint, a heavy added mass,
-    a strong frequency law). A grid of one factor is then refined about its best point
+    a strong frequency law). The grid's first factor is then refined about its best point
     (:data:`REFINE`): a heavy mass brings its own mode into the band, and the valley where
     every mode pairs can be narrower than the grid's steps."""
     costs = list(scan_costs(fits, problem, ext, theta_b, grid, solver))
-    best = grid[int(np.argmin(costs))]
-    if np.ndim(best) == 0:
-        grid = list(grid) + [best + d for d in REFINE]
-        costs += list(scan_costs(fits, problem, ext, theta_b, grid[len(costs):], solver))
+    best = np.asarray(grid[int(np.argmin(costs))], float)
+    step = np.eye(best.size)[0].reshape(best.shape)
+    grid = list(grid) + [best + d * step for d in REFINE]
+    costs += list(scan_costs(fits, problem, ext, theta_b, grid[len(costs):], solver))
     return np.atleast_1d(np.asarray(grid[int(np.argmin(costs))], float))
 
 

@@ -31,7 +31,10 @@ class Extension(eqx.Module):
     (``k_add``: added springs or masses present with scale 0). With ``visco`` set, θ₁
     gives the law ``a = a₀ + (e^θ₁ − 1)`` on the ``k_log`` group (reference ``f_ref``),
     the parameterisation of :class:`~updating.FrequencyDependentStiffness`; with
-    ``split`` set, θ₁ is a second log-factor, on ``k_log_2`` (a joint's rotations).
+    ``split`` set, θ₁ is a second log-factor, on ``k_log_2`` (a joint's rotations); with
+    ``height`` set, θ₁ moves point masses' CG (a payload standing on its footprint):
+    ``offset ← offset + θ₁·offset_1``, ``inertia ← inertia + θ₁·inertia_1 + θ₁²·inertia_2``
+    (the exact CONM2 of a box whose CG height grows linearly in θ₁).
     """
 
     k_log: tuple[Float[Array, " n"], ...]
@@ -43,12 +46,16 @@ class Extension(eqx.Module):
     k_log_2: tuple[Float[Array, " n"], ...]
     part_log: tuple[Float[Array, "n 3"], ...]
     nsm_add: tuple[Float[Array, " n"], ...]
+    offset_1: Float[Array, "n 3"]
+    inertia_1: Float[Array, "n 3 3"]
+    inertia_2: Float[Array, "n 3 3"]
     visco: bool = eqx.field(static=True)
     split: bool = eqx.field(static=True)
+    height: bool = eqx.field(static=True, default=False)
 
     @property
     def n_params(self) -> int:
-        return 2 if self.visco or self.split else 1
+        return 2 if self.visco or self.split or self.height else 1
 
     def __call__(self, model: Model, theta: Float[Array, " e"]) -> Model:
         theta = jnp.clip(theta, -_THETA_MAX, _THETA_MAX)  # a wild trial step stays finite
@@ -66,6 +73,11 @@ class Extension(eqx.Module):
             blk = getattr(model, name)
             model = eqx.tree_at(lambda m, name=name: (getattr(m, name).parts, getattr(m, name).nsm), model,
                                 (blk.parts * jnp.exp(theta[0] * part), blk.nsm + nsm * s))
+        if self.height:
+            h = theta[1]
+            model = eqx.tree_at(lambda m: (m.masses.offset, m.masses.inertia), model, (
+                model.masses.offset + h * self.offset_1,
+                model.masses.inertia + h * self.inertia_1 + h * h * self.inertia_2))
         if self.visco:
             a = self.a0 + jnp.expm1(jnp.minimum(theta[1], 1.0))  # a step of at most e − 1
             law = jaxfem.Viscoelastic(self.k_log, a, self.f_ref)
@@ -74,23 +86,33 @@ class Extension(eqx.Module):
 
 
 def extension(model: Model, *, k_log=(), k_add=(), m_log=(), m_add=(), f_ref: float | None = None,
-              a0: float = 0.0, k_log_2=(), part_log=(), part: str = "shear", nsm_add=(), nsm: float = 0.0
-              ) -> Extension:
+              a0: float = 0.0, k_log_2=(), part_log=(), part: str = "shear", nsm_add=(), nsm: float = 0.0,
+              height: dict | None = None) -> Extension:
     """Masks from element ids: ``k_log`` etc. list the element ids of each role; a law
     (``visco``) when ``f_ref`` (Hz) is given, its coefficient starting at ``a0``; a second
     log-factor (``split``) when ``k_log_2`` lists elements; the shells ``part_log`` get the
     log-factor on their ``part`` ("membrane", "bending" or "shear"), the shells ``nsm_add``
-    the non-structural mass ``nsm`` (kg/m²) at θ₀ = 0."""
+    the non-structural mass ``nsm`` (kg/m²) at θ₀ = 0; ``height``: {CONM2 id:
+    (offset_1 (3,), inertia_1 (3, 3), inertia_2 (3, 3))}, θ₁ moving their CG."""
 
     def masks(blocks, ids):
         ids = np.asarray(list(ids), np.int64)
         return tuple(jnp.asarray(np.isin(getattr(model, b).ids, ids), dtype=jnp.float64) for b in blocks)
 
-    if f_ref is not None and len(k_log_2):
-        raise ValueError("an extension has a frequency law or a second factor, not both")
+    if (f_ref is not None) + bool(len(k_log_2)) + bool(height) > 1:
+        raise ValueError("an extension has one second parameter: a frequency law, a second factor or a CG height")
+    c = model.masses
+    moves = {"offset_1": np.zeros((len(c.ids), 3)), "inertia_1": np.zeros((len(c.ids), 3, 3)),
+             "inertia_2": np.zeros((len(c.ids), 3, 3))}
+    for eid, values in (height or {}).items():
+        row = np.flatnonzero(np.asarray(c.ids) == eid)
+        if len(row) != 1:
+            raise ValueError(f"extension: CONM2 {eid} is not in the model")
+        for (name, array), value in zip(moves.items(), values):
+            array[row[0]] = value
     column = np.arange(3) == PARTS.index(part)
     parts = tuple(m[:, None] * jnp.asarray(column, dtype=jnp.float64) for m in masks(SHELL_BLOCKS, part_log))
     return Extension(masks(K_BLOCKS, k_log), masks(K_BLOCKS, k_add), masks(M_BLOCKS, m_log),
                      masks(M_BLOCKS, m_add), jnp.asarray(f_ref or 1.0), jnp.asarray(float(a0)),
                      masks(K_BLOCKS, k_log_2), parts, tuple(m * nsm for m in masks(SHELL_BLOCKS, nsm_add)),
-                     f_ref is not None, len(k_log_2) > 0)
+                     *(jnp.asarray(a) for a in moves.values()), f_ref is not None, len(k_log_2) > 0, bool(height))
