@@ -256,8 +256,9 @@ def _singular(detail: str) -> ValueError:
 _warned = False
 
 
-def resolve_backend(backend: str) -> str:
-    """``"auto"`` → PARDISO if ``pypardiso`` imports, SuperLU otherwise (warned once)."""
+def resolve_backend(backend: str, quiet: bool = False) -> str:
+    """``"auto"`` → PARDISO if ``pypardiso`` imports, SuperLU otherwise (warned once, unless
+    ``quiet``)."""
     global _warned
     if backend not in BACKENDS:
         raise ValueError(f"sparse backend must be one of {BACKENDS}, got {backend!r}")
@@ -268,7 +269,7 @@ def resolve_backend(backend: str) -> str:
     except ImportError as err:  # not installed, or its MKL library not found
         if backend == "pardiso":
             raise ImportError(f"backend 'pardiso' needs pypardiso and MKL: pip install 'jaxfem[sparse]' ({err})") from None
-        if not _warned:
+        if not (_warned or quiet):
             _warned = True
             warnings.warn(f"pypardiso cannot be used ({err}): the sparse eigensolver factorises with SciPy's "
                           "SuperLU (slower on large models; pip install 'jaxfem[sparse]' for MKL PARDISO)",

@@ -90,9 +90,13 @@ def _assert_scores(got, ref, rtol=1e-6):
         np.testing.assert_allclose([g[k] for k in keys], values / values.max(), rtol=rtol)
 
 
-def test_residual_forces_sparse_equals_dense_least_squares(frame):
+@pytest.mark.parametrize("backend", ["pardiso", "superlu"])
+def test_residual_forces_sparse_equals_dense_least_squares(frame, backend, monkeypatch):
     """Against :func:`_dense_reference` (the KKT system in normal form, dense; on this frame
-    A is well conditioned, cond ≤ 2·10⁵), noise floor included."""
+    A is well conditioned, cond ≤ 2·10⁵), noise floor included, with either factorisation."""
+    if backend == "pardiso":
+        pytest.importorskip("pypardiso")
+    monkeypatch.setattr(localisation._sparse, "resolve_backend", lambda *args, **kwargs: backend)
     model, lam, phi_e, C = frame
     _assert_scores(residual_forces(model, lam, phi_e, C), _dense_reference(model, lam, phi_e, C))
 

@@ -98,7 +98,7 @@ def residual_forces(model: Model, lam_e, phi_e, C) -> tuple[dict[int, float], di
     pat = _sparse.pattern(tuple(K.indices) + tuple(M.indices), K.n)
     kd = pat.values(K.blocks, pat.slots[:len(K.blocks)])
     md = pat.values(M.blocks, pat.slots[len(K.blocks):])
-    backend = _sparse.resolve_backend("auto")
+    backend = _sparse.resolve_backend("auto", quiet=True)  # the eigensolver warns where PARDISO is missed
     C = np.asarray(C, dtype=np.float64)
     ns = C.shape[0]
     rotation = model.dofs.labels[:, 1] > 3
