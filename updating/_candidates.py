@@ -311,8 +311,8 @@ def node_candidates(aug: Model, dormant, screen: Screen) -> list[Candidate]:
     for ref, ids in dormant:
         g = screen.column(ref.scales, ids)
         step = float(np.log(np.clip(screen.step(g)[0], np.exp(-3.0), np.exp(3.0))))
-        first = (step,) + (0.0,) * (len(ref.prior_sd) - 1)  # a payload's CG height from its footprint
-        c = Candidate(ref, ref.dormant_extension(aug, ids), scan=(first if len(first) > 1 else step,) + tuple(ref.scan))
+        first = step if len(ref.prior_sd) == 1 else (step,) + (0.0,) * (len(ref.prior_sd) - 1)  # a payload: flat
+        c = Candidate(ref, ref.dormant_extension(aug, ids), scan=(first,) + tuple(ref.scan))
         c.screen = float(screen.rho(g)[0])
         out.append(c)
     return out

@@ -857,7 +857,7 @@ class Payload(AbstractMass):
         """``height`` masks of :func:`~updating._extension.extension` for this payload's
         CONM2 ``eid``: θ₁ shifts its CG by θ₁·size along n, its box inertia follows."""
         _, inplane, n = self._box(model)
-        m, h, u = self._need("m"), float(self.height or 0.0), self.size
+        m, h, u = self._need("m"), float(self.height or 0.0), self.footprint(model)[2]
         return {eid: (u * n, m * 2 * h * u / 3 * inplane, m * u * u / 3 * inplane)}
 
     def extension(self, model: Model, extended: Model) -> Extension:
@@ -871,6 +871,8 @@ class Payload(AbstractMass):
     def updated(self, theta) -> Payload:
         """θ₀ on m; θ₁ (when given: the diagnosis' fit) shifts the height by θ₁·size."""
         t = np.atleast_1d(np.asarray(theta, float))
+        if len(t) > 1 and not self.size > 0:
+            raise ValueError(f"payload at {self.where()}: its footprint's size is not set (at_reference sets it)")
         h = float(self.height or 0.0) + (float(t[1]) * self.size if len(t) > 1 else 0.0)
         return replace(self, m=float(self._need("m") * np.exp(t[0])), height=h)
 
