@@ -9,6 +9,7 @@ from ._eigen import nelson as nelson
 from ._matrix import AbstractSymmetricMatrix as AbstractSymmetricMatrix
 from ._matrix import DenseMatrix as DenseMatrix
 from ._matrix import ElementMatrix as ElementMatrix
+from ._model import ELEMENT_BLOCKS as ELEMENT_BLOCKS
 from ._model import MASS_BLOCKS as MASS_BLOCKS
 from ._model import STIFFNESS_BLOCKS as STIFFNESS_BLOCKS
 from ._model import STRUCTURAL_BLOCKS as STRUCTURAL_BLOCKS

@@ -105,6 +105,15 @@ class ElementMatrix(AbstractSymmetricMatrix):
             out = out.at[idx].add(local)
         return out[: self.size]
 
+    def project(self, V: Float[Array, "n k"]) -> Float[Array, "k k"]:
+        """``Vᵀ A V`` summed element by element (no n × k product: cheap for a few elements)."""
+        Vp = jnp.concatenate([V, jnp.zeros((1, V.shape[1]))])
+        out = jnp.zeros((V.shape[1], V.shape[1]))
+        for blk, idx in zip(self.blocks, self.indices):
+            g = Vp[idx]
+            out = out + g.reshape(-1, V.shape[1]).T @ jnp.einsum("eij,ejb->eib", blk, g).reshape(-1, V.shape[1])
+        return out
+
     def tocsr(self) -> scipy.sparse.csr_matrix:
         """The matrix as SciPy CSR, on the host (concrete values only; no n × n array)."""
         rows, cols, vals = [], [], []

@@ -23,6 +23,7 @@ COMPONENTS = 6  # DoFs per grid: T1 T2 T3 R1 R2 R3 (Nastran components 1..6)
 STIFFNESS_BLOCKS = ("beams", "rods", "springs", "bushes", "quads", "trias")
 MASS_BLOCKS = ("beams", "rods", "masses", "quads", "trias")
 STRUCTURAL_BLOCKS = ("beams", "rods", "bushes", "quads", "trias")
+ELEMENT_BLOCKS = ("beams", "rods", "springs", "bushes", "quads", "trias", "masses")
 
 
 def require_float64() -> None:
@@ -312,6 +313,14 @@ class Model(eqx.Module):
                 rows.append(n[keep])
                 ids.append(np.asarray(block.ids)[keep])
         return np.concatenate(rows).astype(np.int64), np.concatenate(ids).astype(np.int64)
+
+    def restricted(self, eids: Sequence[int]) -> Model:
+        """The same grids and DoFs with only the elements ``eids`` (of any block): what
+        they alone assemble into K and M."""
+        eids = np.asarray(eids, np.int64)
+        blocks = tuple(jax.tree.map(lambda a, keep=np.flatnonzero(np.isin(getattr(self, n).ids, eids)): a[keep],
+                                    getattr(self, n)) for n in ELEMENT_BLOCKS)
+        return eqx.tree_at(lambda m: tuple(getattr(m, n) for n in ELEMENT_BLOCKS), self, blocks)
 
     def element_ids(self, pids: Sequence[int] | None = None) -> np.ndarray:
         """All element ids, or those whose property id is in ``pids`` (CONM2 has none)."""

@@ -54,11 +54,12 @@ def joint(case):
     base = fit(fits, problem, none, np.zeros(1))
     bases = Bases(with_extension(problem, none), base["theta"])
     c = next(c for c in structural_candidates(aug, stiffened) if c.reference.nodes == (NODE,))
-    return problem, fits, c, bases.reduced(problem, c.ext, np.zeros(2))
+    springs = next(list(ids) + list(ids_2) for stiff, (ids, ids_2) in stiffened if stiff.nodes == (NODE,))
+    return problem, fits, c, bases.reduced(problem, c.ext, np.zeros(2)), (bases, springs)
 
 
 def test_released_joint_eigenvalues_and_derivative(joint):
-    problem, _, c, red = joint
+    problem, _, c, red, _ = joint
     p = with_extension(problem, c.ext)
     for theta in ([0.0, 0.0], [0.0, -4.6], [-2.0, -6.0], [0.0, -9.0]):
         t = jnp.asarray(theta)
@@ -72,9 +73,32 @@ def test_released_joint_eigenvalues_and_derivative(joint):
 
 
 def test_reduced_fit_lands_where_the_full_one_does(joint):
-    problem, fits, c, red = joint
+    problem, fits, c, red, _ = joint
     full = fit(fits, problem, c.ext, np.array([0.0, -4.6]))
     reduced = fit(fits, problem, c.ext, np.array([0.0, -4.6]), red)
     assert np.allclose(reduced["theta"], full["theta"], atol=1e-3)
     assert abs(reduced["cost"] / full["cost"] - 1) < 1e-3
 
+
+
+def test_pool_assembles_only_what_changes(joint):
+    """With a pool holding the joint's springs (and a beam it does not change), each step
+    assembles only the pool and adds the rest once: the same eigenvalues and derivatives
+    to rounding. A pool missing one of them is not used."""
+    problem, _, c, red, (bases, springs) = joint
+    p = with_extension(problem, c.ext)
+    beam = int(np.asarray(problem.structure.value.beams.ids)[0])
+    bases.pool = tuple(sorted(springs + [beam]))
+    try:
+        pooled = bases.reduced(problem, c.ext, np.zeros(2))
+        bases.pool = (beam,) + tuple(sorted(springs))[1:]
+        missing = bases.reduced(problem, c.ext, np.zeros(2))
+    finally:
+        bases.pool = None
+    assert pooled.pool == tuple(sorted(springs + [beam])) and missing.pool is None
+    lam = lambda solver, t: solver(t, p, jnp.zeros(0))[0].lam_a  # noqa: E731
+    for theta in ([0.0, 0.0], [-2.0, -6.0], [0.5, -9.0]):
+        t = jnp.asarray(theta)
+        np.testing.assert_allclose(lam(pooled, t), lam(red, t), rtol=1e-9)
+        np.testing.assert_allclose(jax.jacfwd(lambda t: lam(pooled, t))(t), jax.jacfwd(lambda t: lam(red, t))(t),
+                                   rtol=1e-7, atol=1e-9 * float(np.max(np.asarray(lam(red, t)))))

@@ -377,6 +377,18 @@ def patch_neighbours(model: Model, c: Candidate, f_e) -> list[AbstractPatch]:
     return out
 
 
+def pool(model: Model, cands: list[Candidate], dormant, stiffened) -> tuple[int, ...]:
+    """The elements the reduced fits assemble at each step (:attr:`updating._reduced.Bases.pool`):
+    the dormant ones, the released joints' springs, and the shells of the patches among
+    ``cands`` with one ring of shells about them (a patch moved to a neighbouring grid
+    by the hill-climb stays inside)."""
+    patches = [c.reference.elements(model) for c in cands if isinstance(c.reference, AbstractPatch)]
+    shells = np.unique(np.concatenate(patches)) if patches else np.zeros(0, np.int64)
+    ring = [e for g in element_grids(model, shells) for e in elements_at(model, g)]
+    added = [e for _, ids in dormant for e in ids] + [e for _, pair in stiffened for ids in pair for e in ids]
+    return tuple(sorted({int(e) for e in np.concatenate([shells, ring, added])}))
+
+
 def structural_candidates(aug: Model, stiffened) -> list[Candidate]:
     """The released joints and supports of ``aug``: one log-factor on each one's springs,
     from :data:`STIFF` × its reference (θ = 0) down; prior and scan about the reference."""

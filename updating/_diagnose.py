@@ -59,6 +59,7 @@ from ._candidates import (
     patch_candidate,
     patch_candidates,
     patch_neighbours,
+    pool,
     region_structures,
     shell_grids,
     shortlist,
@@ -248,6 +249,10 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
         kinds = tuple(k for k in kinds if k != "frequency_dependent_stiffness")
     cands = [c for c in cands if c.effect.kind in kinds] + patch_candidates(model, nodes, screen, patches)
     structural = structural_candidates(aug, stiffened)
+    if bases is not None:  # the joints can only push other candidates off the shortlist
+        bases.pool = pool(aug, shortlist(cands, options.shortlist, options.per_kind, kinds, options.within),
+                          dormant, stiffened)
+        say(f"reduced fits assemble {len(bases.pool)} elements at each step")
     scans = {c: (list(c.scan), list(scan_costs(fits, problem, c.ext, theta_b, c.scan, solver(c)))) for c in structural}
     for c in sorted(structural, key=lambda c: min(scans[c][1]))[:2]:  # the best two: each factor alone too
         grid, costs = scans[c]

@@ -93,17 +93,25 @@ class Reduced(AbstractEigensolver):
     """The modes of the model projected on a fixed basis V (n × r): ``Vᵀ K(θ) V y = λ Vᵀ M(θ) V y``,
     φ = V y (Rayleigh–Ritz). The reduced matrices are assembled from K(θ), M(θ) at every θ,
     so their derivatives are those of the reduced problem, exact (:func:`jaxfem.eigh`).
-    Accurate while the basis spans the changed shapes (:mod:`updating._reduced`). Columns
-    ``padding`` (zero, so that bases of different sizes share a compiled fit) enter as
-    uncoupled modes far above the others."""
+    With a ``pool`` of element ids holding every element that θ changes, only the pool
+    is assembled: ``Vᵀ K(θ) V = fixed + Vᵀ K_pool(θ) V`` (``fixed``: the rest, constant),
+    exact and cheap on a large model. Accurate while the basis spans the changed shapes
+    (:mod:`updating._reduced`). Columns ``padding`` (zero, so that bases of different
+    sizes share a compiled fit) enter as uncoupled modes far above the others."""
 
     basis: Float[Array, "n r"]
     padding: Bool[Array, " r"]
+    fixed: tuple[Float[Array, "r r"], Float[Array, "r r"]] | None = None
+    pool: tuple[int, ...] | None = eqx.field(static=True, default=None)
 
     def __call__(self, theta, problem, warm):
-        K, M = jaxfem.assemble(problem.model(theta))
         V = self.basis
-        kr, mr = V.T @ K.matmul(V), V.T @ M.matmul(V)
+        if self.pool is None:
+            K, M = jaxfem.assemble(problem.model(theta))
+            kr, mr = V.T @ K.matmul(V), V.T @ M.matmul(V)
+        else:
+            kp, mp = pool_projection(theta, problem, V, self.pool)
+            kr, mr = self.fixed[0] + kp, self.fixed[1] + mp
         top = jax.lax.stop_gradient(1e3 * jnp.max(jnp.abs(jnp.diagonal(kr))) + 1.0)
         kr, mr = kr + jnp.diag(jnp.where(self.padding, top, 0.0)), mr + jnp.diag(self.padding.astype(mr.dtype))
         lam, y = jaxfem.eigh(0.5 * (kr + kr.T), 0.5 * (mr + mr.T), problem.n_model)
@@ -112,3 +120,10 @@ class Reduced(AbstractEigensolver):
         safe = jnp.where(paired, index, 0)
         ev = paired_evaluation(lam[safe], phi_s[:, safe], index, paired, lam, phi_s, problem)
         return ev, warm, jnp.asarray(True), jnp.asarray(False)
+
+
+def pool_projection(theta, problem: Problem, V, pool: tuple[int, ...]):
+    """``(Vᵀ K_pool V, Vᵀ M_pool V)`` at θ: the part of the reduced matrices the elements
+    ``pool`` assemble (:meth:`jaxfem.Model.restricted`)."""
+    K, M = jaxfem.assemble(problem.model(theta).restricted(pool))
+    return K.project(V), M.project(V)

@@ -17,18 +17,26 @@ changed model are sought in the span of
 
 The basis is M-orthonormalised. The reduced eigenvalues are Rayleigh quotients, so their
 error is of second order in the shapes' error. The baseline's part is made once.
+
+A fit step then costs what the elements θ changes cost: with a ``pool`` of element ids
+(the diagnosis' region, :attr:`Bases.pool`) that holds every element a candidate
+changes, only the pool is assembled and projected at each θ, the rest once
+(:class:`~updating._eigensolvers.Reduced`); a candidate changing anything else (a whole
+group, a material) assembles the whole model at each θ.
 """
 
 from __future__ import annotations
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 import jaxfem
+from jaxfem import ELEMENT_BLOCKS
 
 from ._compiled import Compiled
-from ._eigensolvers import Reduced
+from ._eigensolvers import Reduced, pool_projection
 from ._element_sensitivity import _modes
 from ._evidence import with_extension
 from ._residuals import Problem, pair
@@ -49,21 +57,40 @@ def _loads(theta, problem: Problem, tangents, phi, lam):
     return jnp.moveaxis(out, 0, 1).reshape(phi.shape[0], -1)
 
 
-def _touched(theta, problem: Problem, tangents):
-    """Per DoF, Σ |∂K| + |∂M| over the rows along ``tangents``: nonzero where they touch."""
+def _touched(theta, problem: Problem, tangents, pool):
+    """Per DoF, Σ |∂K| + |∂M| over the rows along ``tangents``: nonzero where they touch
+    (the elements ``pool`` assembled, all when None)."""
+
+    def assembled(t):
+        model = problem.model(t)
+        return jaxfem.assemble(model if pool is None else model.restricted(pool))
 
     def one(d):
-        (K, M), (dK, dM) = jax.jvp(lambda t: jaxfem.assemble(problem.model(t)), (theta,), (d,))
+        (K, M), (dK, dM) = jax.jvp(assembled, (theta,), (d,))
         ones = jnp.ones((K.n, 1))
         return sum(A.with_values(jax.tree.map(jnp.abs, dA.values())).matmul(ones)[:, 0] for A, dA in ((K, dK), (M, dM)))
 
     return jnp.sum(jax.lax.map(one, tangents), axis=0)
 
 
-def _mass(theta, problem: Problem):
-    """M(θ), element-stacked: compiled once for all candidates (their masks are arrays),
-    its products taken on the host (a compiled product would compile anew at every basis width)."""
-    return jaxfem.assemble(problem.model(theta))[1]
+def _changes(theta, problem: Problem, d):
+    """Along the direction ``d``: per element block, Σ |∂| of each element's data; and Σ |∂|
+    of everything else in the model (materials, sections, a law)."""
+    m, dm = eqx.filter_jvp(problem.model, (theta,), (d,))
+
+    def size(x):
+        return jnp.sum(jnp.abs(x).reshape(x.shape[0], -1), axis=1) if x.size else jnp.zeros(x.shape[0])
+
+    blocks = {n: sum((size(x) for x in jax.tree.leaves(getattr(dm, n))), jnp.zeros(len(getattr(m, n).ids)))
+              for n in ELEMENT_BLOCKS}
+    rest = eqx.tree_at(lambda m: tuple(getattr(m, n) for n in ELEMENT_BLOCKS), dm, replace=(None,) * len(ELEMENT_BLOCKS))
+    return blocks, sum((jnp.sum(jnp.abs(x)) for x in jax.tree.leaves(rest)), jnp.zeros(()))
+
+
+def _matrices(theta, problem: Problem):
+    """K(θ), M(θ), element-stacked: compiled once for all candidates (their masks are arrays),
+    their products taken on the host (a compiled product would compile anew at every basis width)."""
+    return jaxfem.assemble(problem.model(theta))
 
 
 class Bases:
@@ -71,10 +98,13 @@ class Bases:
     the engineer's parameters, at θ_b; :meth:`reduced` adds a candidate's columns.
 
     ``problem`` carries an extension of one parameter at 0 (the diagnosis' ``none``), θ_b
-    the engineer's log-factors and that 0."""
+    the engineer's log-factors and that 0. ``pool``: element ids (sorted) assembled at each
+    step of a candidate that changes only these (module docstring); None: the whole model."""
 
     def __init__(self, problem: Problem, theta_b):
-        self._loads, self._touched, self._mass = Compiled(_loads), Compiled(_touched), Compiled(_mass)
+        self._loads, self._touched, self._matrices = Compiled(_loads), Compiled(_touched), Compiled(_matrices)
+        self._changes, self._projection = Compiled(_changes), Compiled(pool_projection)
+        self.pool: tuple[int, ...] | None = None
         theta = jnp.asarray(theta_b, dtype=jnp.float64)
         _, lam, Phi, self._solve, _ = _modes(problem, theta, problem.model(theta))
         q = problem.n_model
@@ -91,15 +121,29 @@ class Bases:
         loads = self._loads(theta, problem, jnp.asarray(tangents), jnp.asarray(self.phi), jnp.asarray(self.lam))
         return np.asarray(self._solve(np.asarray(loads)))
 
+    def _changed(self, theta, problem: Problem, tangents) -> np.ndarray | None:
+        """Ids of the elements whose data change along ``tangents``; None when anything
+        else of the model changes too."""
+        ids = []
+        for d in tangents:
+            blocks, rest = self._changes(theta, problem, d)
+            if float(rest) != 0.0:
+                return None
+            ids += [np.asarray(getattr(problem.structure.value, n).ids)[np.asarray(v) != 0] for n, v in blocks.items()]
+        return np.unique(np.concatenate(ids)) if ids else np.zeros(0, np.int64)
+
     def reduced(self, problem: Problem, ext, theta_c) -> Reduced:
         """The :class:`Reduced` eigensolver of one candidate (``ext``, its θ at ``theta_c``):
-        the baseline's columns and the candidate's (module docstring)."""
+        the baseline's columns and the candidate's (module docstring); it assembles only
+        the :attr:`pool` when that holds every element the candidate changes."""
         p = with_extension(problem, ext)
         theta_c = np.atleast_1d(np.asarray(theta_c, float))
         theta = jnp.asarray(np.concatenate([self.theta_b, theta_c]))
         tangents = jnp.asarray(np.eye(len(theta))[self.n_b:])
-        touched = np.flatnonzero(np.asarray(self._touched(theta, p, tangents)))
-        M = self._mass(theta, p).tocsr()
+        changed = self._changed(theta, p, tangents) if self.pool is not None else None
+        pool = self.pool if changed is not None and np.isin(changed, self.pool).all() else None
+        touched = np.flatnonzero(np.asarray(self._touched(theta, p, tangents, pool)))
+        K, M = (A.tocsr() for A in self._matrices(theta, p))
         if len(touched) <= ATTACH_MAX:
             unit = np.zeros((len(self.phi), len(touched)))
             unit[touched, np.arange(len(touched))] = 1.0
@@ -110,8 +154,13 @@ class Bases:
             own = self._corrections(p, theta, tangents)
         V = np.concatenate([self.common, own], axis=1)
         V = _orthonormal(V, V.T @ (M @ V))
-        r = _width(V.shape[1])
-        return Reduced(jnp.asarray(np.pad(V, ((0, 0), (0, r - V.shape[1])))), jnp.arange(r) >= V.shape[1])
+        columns, r = V.shape[1], _width(V.shape[1])
+        V, padding = np.pad(V, ((0, 0), (0, r - columns))), jnp.arange(r) >= columns
+        if pool is None:
+            return Reduced(jnp.asarray(V), padding)
+        kp, mp = (np.asarray(a) for a in self._projection(theta, p, jnp.asarray(V), pool))
+        fixed = (V.T @ (K @ V) - kp, V.T @ (M @ V) - mp)
+        return Reduced(jnp.asarray(V), padding, tuple(jnp.asarray(a) for a in fixed), pool)
 
 
 def _width(columns: int) -> int:
