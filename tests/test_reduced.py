@@ -95,7 +95,7 @@ def test_pool_assembles_only_what_changes(joint):
         missing = bases.reduced(problem, c.ext, np.zeros(2))
     finally:
         bases.pool = None
-    assert pooled.pool == tuple(sorted(springs + [beam])) and missing.pool is None
+    assert pooled.pool == tuple(sorted(springs + [beam])) and missing.pool is None and red.pool is None
     lam = lambda solver, t: solver(t, p, jnp.zeros(0))[0].lam_a  # noqa: E731
     for theta in ([0.0, 0.0], [-2.0, -6.0], [0.5, -9.0]):
         t = jnp.asarray(theta)

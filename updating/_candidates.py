@@ -105,10 +105,11 @@ class Screen:
 
     @classmethod
     def at(cls, problem: Problem, theta, model: Model, params: tuple[Parameter, ...], f_e: np.ndarray,
-           kinds=KINDS) -> Screen:
+           kinds=KINDS, modes=None) -> Screen:
         """At θ of ``problem`` (whose first parameters are ``params`` of ``model``); the
-        element columns of ``kinds`` (the baseline's stiffness and mass always)."""
-        jac = element_jacobian(problem, np.asarray(theta), tuple(dict.fromkeys(("k", "m") + tuple(kinds))))
+        element columns of ``kinds`` (the baseline's stiffness and mass always); ``modes``:
+        the model's at θ if solved (:func:`~updating._element_sensitivity.element_jacobian`)."""
+        jac = element_jacobian(problem, np.asarray(theta), tuple(dict.fromkeys(("k", "m") + tuple(kinds))), modes)
         screen = cls(jac.r, jac, np.zeros((len(jac.r), 0)), _row_modes(problem),
                      f_e, float(np.exp(np.mean(np.log(f_e)))))
         if all(p.kind in ("stiffness", "mass") and not p.nodes for p in params):

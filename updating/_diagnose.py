@@ -239,7 +239,8 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     say(f"screening (sensitivity of every element) ({elapsed()})")
     patches = [cls.kind for cls, _ in PATCHES if cls.kind in options.kinds] if shell_grids(model, nodes) else []
     screen = Screen.at(problem, base["theta"], model, params, f_e,
-                       kinds=("k", "m") + (("membrane", "bending", "shear", "nsm") if patches else ()))
+                       kinds=("k", "m") + (("membrane", "bending", "shear", "nsm") if patches else ()),
+                       modes=bases.modes if bases is not None else None)
     elem_a = screen.element_reduction("k")
     node_a = node_max(aug, elem_a)
     cands = group_candidates(model, aug, params, screen) + node_candidates(aug, dormant, screen)

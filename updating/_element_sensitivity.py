@@ -109,13 +109,14 @@ def _modes(problem: Problem, theta, model: Model):
             lambda b: scipy.linalg.cho_solve(factor, b), sigma)
 
 
-def element_jacobian(problem: Problem, theta, kinds=KINDS) -> ElementJacobian:
+def element_jacobian(problem: Problem, theta, kinds=KINDS, modes=None) -> ElementJacobian:
     """The weighted residual ``_flat`` rows (eigenvalue rows, then eigenvector rows
     sensor-major) at θ and their derivatives w.r.t. each element of each of ``kinds``
-    (module docstring). A kind the model has no element of is left out."""
+    (module docstring). A kind the model has no element of is left out. ``modes``: those
+    of :func:`_modes` at this θ if already solved."""
     theta = jnp.asarray(theta)
     model = problem.model(theta)
-    ev, lam, Phi, solve, sigma = _modes(problem, theta, model)
+    ev, lam, Phi, solve, sigma = modes or _modes(problem, theta, model)
     C = np.asarray(problem.C)
     index, paired = np.asarray(ev.model_index), np.asarray(ev.paired)
 

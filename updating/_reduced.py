@@ -36,7 +36,7 @@ import jaxfem
 from jaxfem import ELEMENT_BLOCKS
 
 from ._compiled import Compiled
-from ._eigensolvers import Reduced, pool_projection
+from ._eigensolvers import Reduced
 from ._element_sensitivity import _modes
 from ._evidence import with_extension
 from ._residuals import Problem, pair
@@ -57,16 +57,18 @@ def _loads(theta, problem: Problem, tangents, phi, lam):
     return jnp.moveaxis(out, 0, 1).reshape(phi.shape[0], -1)
 
 
+def _assembled(theta, problem: Problem, pool):
+    """K(θ), M(θ), element-stacked, of the elements ``pool`` (all when None)."""
+    model = problem.model(theta)
+    return jaxfem.assemble(model if pool is None else model.restricted(pool))
+
+
 def _touched(theta, problem: Problem, tangents, pool):
     """Per DoF, Σ |∂K| + |∂M| over the rows along ``tangents``: nonzero where they touch
     (the elements ``pool`` assembled, all when None)."""
 
-    def assembled(t):
-        model = problem.model(t)
-        return jaxfem.assemble(model if pool is None else model.restricted(pool))
-
     def one(d):
-        (K, M), (dK, dM) = jax.jvp(assembled, (theta,), (d,))
+        (K, M), (dK, dM) = jax.jvp(lambda t: _assembled(t, problem, pool), (theta,), (d,))
         ones = jnp.ones((K.n, 1))
         return sum(A.with_values(jax.tree.map(jnp.abs, dA.values())).matmul(ones)[:, 0] for A, dA in ((K, dK), (M, dM)))
 
@@ -87,26 +89,25 @@ def _changes(theta, problem: Problem, d):
     return blocks, sum((jnp.sum(jnp.abs(x)) for x in jax.tree.leaves(rest)), jnp.zeros(()))
 
 
-def _matrices(theta, problem: Problem):
-    """K(θ), M(θ), element-stacked: compiled once for all candidates (their masks are arrays),
-    their products taken on the host (a compiled product would compile anew at every basis width)."""
-    return jaxfem.assemble(problem.model(theta))
-
-
 class Bases:
     """The baseline's modes, its factorisation of K − σM and its static corrections along
     the engineer's parameters, at θ_b; :meth:`reduced` adds a candidate's columns.
 
     ``problem`` carries an extension of one parameter at 0 (the diagnosis' ``none``), θ_b
     the engineer's log-factors and that 0. ``pool``: element ids (sorted) assembled at each
-    step of a candidate that changes only these (module docstring); None: the whole model."""
+    step of a candidate that changes only these (module docstring; at first none, which
+    serves the baseline without parameters); None: the whole model at each step.
+    ``modes``: the baseline's (:func:`~updating._element_sensitivity._modes`)."""
 
     def __init__(self, problem: Problem, theta_b):
-        self._loads, self._touched, self._matrices = Compiled(_loads), Compiled(_touched), Compiled(_matrices)
-        self._changes, self._projection = Compiled(_changes), Compiled(pool_projection)
-        self.pool: tuple[int, ...] | None = None
-        theta = jnp.asarray(theta_b, dtype=jnp.float64)
-        _, lam, Phi, self._solve, _ = _modes(problem, theta, problem.model(theta))
+        # the matrices are compiled once for all candidates (their masks are arrays), their
+        # products taken on the host (a compiled product would compile anew at every basis width)
+        self._loads, self._touched, self._matrices = Compiled(_loads), Compiled(_touched), Compiled(_assembled)
+        self._changes = Compiled(_changes)
+        self._problem, self._theta = problem, jnp.asarray(theta_b, dtype=jnp.float64)
+        theta = self._theta
+        self.modes = _modes(problem, theta, problem.model(theta))  # also the baseline's screen's
+        _, lam, Phi, self._solve, _ = self.modes
         q = problem.n_model
         lam, Phi = lam[:q], Phi[:, :q]
         index, paired = (np.asarray(a) for a in pair(jnp.asarray(lam), problem.C @ jnp.asarray(Phi), problem))
@@ -116,17 +117,31 @@ class Bases:
         self.n_b = len(self.theta_b)
         common = [Phi] + ([self._corrections(problem, theta, np.eye(len(theta))[: self.n_b])] if self.n_b else [])
         self.common = np.concatenate(common, axis=1)
+        self.pool = ()  # the baseline without parameters changes no element
 
     def _corrections(self, problem: Problem, theta, tangents) -> np.ndarray:
         loads = self._loads(theta, problem, jnp.asarray(tangents), jnp.asarray(self.phi), jnp.asarray(self.lam))
         return np.asarray(self._solve(np.asarray(loads)))
 
-    def _changed(self, theta, problem: Problem, tangents) -> np.ndarray | None:
-        """Ids of the elements whose data change along ``tangents``; None when anything
-        else of the model changes too."""
+    @property
+    def pool(self) -> tuple[int, ...] | None:
+        return self._pool
+
+    @pool.setter
+    def pool(self, eids: tuple[int, ...] | None):
+        """Set the pool; the rest of K and M (constant for the candidates it serves) is
+        assembled once, at θ_b."""
+        self._pool = eids
+        if eids is not None:
+            full, part = (self._matrices(self._theta, self._problem, p) for p in (None, eids))
+            self._rest = tuple(a.tocsr() - b.tocsr() for a, b in zip(full, part))
+
+    def _changed(self, theta, problem: Problem) -> np.ndarray | None:
+        """Ids of the elements whose data change with any parameter (the engineer's and the
+        candidate's); None when anything else of the model changes too."""
         ids = []
-        for d in tangents:
-            blocks, rest = self._changes(theta, problem, d)
+        for d in np.eye(len(theta)):
+            blocks, rest = self._changes(theta, problem, jnp.asarray(d))
             if float(rest) != 0.0:
                 return None
             ids += [np.asarray(getattr(problem.structure.value, n).ids)[np.asarray(v) != 0] for n, v in blocks.items()]
@@ -135,15 +150,15 @@ class Bases:
     def reduced(self, problem: Problem, ext, theta_c) -> Reduced:
         """The :class:`Reduced` eigensolver of one candidate (``ext``, its θ at ``theta_c``):
         the baseline's columns and the candidate's (module docstring); it assembles only
-        the :attr:`pool` when that holds every element the candidate changes."""
+        the :attr:`pool` when that holds every element the parameters change."""
         p = with_extension(problem, ext)
         theta_c = np.atleast_1d(np.asarray(theta_c, float))
         theta = jnp.asarray(np.concatenate([self.theta_b, theta_c]))
         tangents = jnp.asarray(np.eye(len(theta))[self.n_b:])
-        changed = self._changed(theta, p, tangents) if self.pool is not None else None
+        changed = self._changed(theta, p) if self.pool is not None else None
         pool = self.pool if changed is not None and np.isin(changed, self.pool).all() else None
         touched = np.flatnonzero(np.asarray(self._touched(theta, p, tangents, pool)))
-        K, M = (A.tocsr() for A in self._matrices(theta, p))
+        M = self._matrices(theta, p, pool)[1].tocsr() + (self._rest[1] if pool is not None else 0)
         if len(touched) <= ATTACH_MAX:
             unit = np.zeros((len(self.phi), len(touched)))
             unit[touched, np.arange(len(touched))] = 1.0
@@ -158,9 +173,8 @@ class Bases:
         V, padding = np.pad(V, ((0, 0), (0, r - columns))), jnp.arange(r) >= columns
         if pool is None:
             return Reduced(jnp.asarray(V), padding)
-        kp, mp = (np.asarray(a) for a in self._projection(theta, p, jnp.asarray(V), pool))
-        fixed = (V.T @ (K @ V) - kp, V.T @ (M @ V) - mp)
-        return Reduced(jnp.asarray(V), padding, tuple(jnp.asarray(a) for a in fixed), pool)
+        fixed = tuple(jnp.asarray(V.T @ (A @ V)) for A in self._rest)
+        return Reduced(jnp.asarray(V), padding, fixed, pool)
 
 
 def _width(columns: int) -> int:
