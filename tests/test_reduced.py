@@ -14,7 +14,7 @@ from benchmarks.frames import frame_bdf
 from identification import Sensors
 from jaxfem.io import read_bdf_text
 from test_diagnose import measure
-from updating import Options, ParameterSet
+from updating import Options, Parameter, ParameterSet
 from updating._candidates import augment, region_structures, structural_candidates
 from updating._diagnose import DiagnoseOptions
 from updating._effects import Effect, at_reference
@@ -102,3 +102,21 @@ def test_pool_assembles_only_what_changes(joint):
         np.testing.assert_allclose(lam(pooled, t), lam(red, t), rtol=1e-9)
         np.testing.assert_allclose(jax.jacfwd(lambda t: lam(pooled, t))(t), jax.jacfwd(lambda t: lam(red, t))(t),
                                    rtol=1e-7, atol=1e-9 * float(np.max(np.asarray(lam(red, t)))))
+
+
+def test_pool_holds_the_engineers_parameters_too(case):
+    """A fit moves the engineer's factors with the candidate's: a pool that holds the added
+    mass but not the engineer's group is not used; with the group in it, it is."""
+    model, test = case
+    f_e = np.asarray(test.frequencies_hz)
+    aug, dormant, _ = augment(model, [NODE], [], f_e)
+    pid = min(elements_at(model, NODE).values())
+    problem = build_problem(aug, test, ParameterSet((Parameter("g", "stiffness", pids=(pid,)),),
+                                                    Options(regularisation=1e-6)))
+    bases = Bases(with_extension(problem, extension(aug)), np.zeros(2))
+    ref, ids = next((ref, ids) for ref, ids in dormant if ref.kind == "added_mass")
+    ext = ref.dormant_extension(aug, ids)
+    bases.pool = tuple(sorted(ids))
+    assert bases.reduced(problem, ext, np.zeros(1)).pool is None
+    bases.pool = tuple(sorted(set(ids) | set(aug.element_ids(pids=(pid,)).tolist())))
+    assert bases.reduced(problem, ext, np.zeros(1)).pool == bases.pool
