@@ -106,7 +106,7 @@ def test_without_ray_the_message_names_the_extra(monkeypatch):
 def test_candidate_fits_on_ray_equal_one_process(cores, joint):  # noqa: F811
     """The frame's released joint fitted on the full and on the reduced model, with a scan
     and without: the same θ₀, θ and cost as fitted here (float64 on one core each)."""
-    problem, fits, c, red = joint
+    problem, fits, c, red, _ = joint
     jobs = [(0, c.ext, np.zeros(0), None, np.array([0.0, -4.6]), Direct()),
             (1, c.ext, np.zeros(0), c.scan, np.zeros(2), red)]
     remote = dict((job[0], out) for job, out in fit_candidates_ray(problem, fits.settings, jobs, workers=2))
