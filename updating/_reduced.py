@@ -85,7 +85,8 @@ def _changes(theta, problem: Problem, d):
 
     blocks = {n: sum((size(x) for x in jax.tree.leaves(getattr(dm, n))), jnp.zeros(len(getattr(m, n).ids)))
               for n in ELEMENT_BLOCKS}
-    rest = eqx.tree_at(lambda m: tuple(getattr(m, n) for n in ELEMENT_BLOCKS), dm, replace=(None,) * len(ELEMENT_BLOCKS))
+    rest = eqx.tree_at(lambda m: tuple(getattr(m, n) for n in ELEMENT_BLOCKS), dm,
+                       replace=(None,) * len(ELEMENT_BLOCKS))
     return blocks, sum((jnp.sum(jnp.abs(x)) for x in jax.tree.leaves(rest)), jnp.zeros(()))
 
 
@@ -125,6 +126,7 @@ class Bases:
 
     @property
     def pool(self) -> tuple[int, ...] | None:
+        """Element ids assembled at each step of the candidates they serve (class docstring)."""
         return self._pool
 
     @pool.setter
