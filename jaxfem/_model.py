@@ -23,7 +23,7 @@ COMPONENTS = 6  # DoFs per grid: T1 T2 T3 R1 R2 R3 (Nastran components 1..6)
 STIFFNESS_BLOCKS = ("beams", "rods", "springs", "bushes", "quads", "trias")
 MASS_BLOCKS = ("beams", "rods", "masses", "quads", "trias")
 STRUCTURAL_BLOCKS = ("beams", "rods", "bushes", "quads", "trias")
-ELEMENT_BLOCKS = ("beams", "rods", "springs", "bushes", "quads", "trias", "masses")
+ELEMENT_BLOCKS = STIFFNESS_BLOCKS + ("masses",)  # every element block
 
 
 def require_float64() -> None:

@@ -385,7 +385,7 @@ def pool(model: Model, cands: list[Candidate], dormant, stiffened) -> tuple[int,
     by the hill-climb stays inside)."""
     patches = [c.reference.elements(model) for c in cands if isinstance(c.reference, AbstractPatch)]
     shells = np.unique(np.concatenate(patches)) if patches else np.zeros(0, np.int64)
-    ring = [e for g in element_grids(model, shells) for e in elements_at(model, g)]
+    ring = list(elements_at(model, element_grids(model, shells))) if len(shells) else []
     added = [e for _, ids in dormant for e in ids] + [e for _, pair in stiffened for ids in pair for e in ids]
     return tuple(sorted({int(e) for e in np.concatenate([shells, ring, added])}))
 

@@ -110,8 +110,8 @@ class Reduced(AbstractEigensolver):
             K, M = jaxfem.assemble(problem.model(theta))
             kr, mr = V.T @ K.matmul(V), V.T @ M.matmul(V)
         else:
-            kp, mp = pool_projection(theta, problem, V, self.pool)
-            kr, mr = self.fixed[0] + kp, self.fixed[1] + mp
+            K, M = jaxfem.assemble(problem.model(theta).restricted(self.pool))
+            kr, mr = self.fixed[0] + K.project(V), self.fixed[1] + M.project(V)
         top = jax.lax.stop_gradient(1e3 * jnp.max(jnp.abs(jnp.diagonal(kr))) + 1.0)
         kr, mr = kr + jnp.diag(jnp.where(self.padding, top, 0.0)), mr + jnp.diag(self.padding.astype(mr.dtype))
         lam, y = jaxfem.eigh(0.5 * (kr + kr.T), 0.5 * (mr + mr.T), problem.n_model)
@@ -120,10 +120,3 @@ class Reduced(AbstractEigensolver):
         safe = jnp.where(paired, index, 0)
         ev = paired_evaluation(lam[safe], phi_s[:, safe], index, paired, lam, phi_s, problem)
         return ev, warm, jnp.asarray(True), jnp.asarray(False)
-
-
-def pool_projection(theta, problem: Problem, V, pool: tuple[int, ...]):
-    """``(Vᵀ K_pool V, Vᵀ M_pool V)`` at θ: the part of the reduced matrices the elements
-    ``pool`` assemble (:meth:`jaxfem.Model.restricted`)."""
-    K, M = jaxfem.assemble(problem.model(theta).restricted(pool))
-    return K.project(V), M.project(V)

@@ -118,6 +118,7 @@ class Bases:
         self.n_b = len(self.theta_b)
         common = [Phi] + ([self._corrections(problem, theta, np.eye(len(theta))[: self.n_b])] if self.n_b else [])
         self.common = np.concatenate(common, axis=1)
+        self._full = tuple(A.tocsr() for A in self._matrices(theta, problem, None))
         self.pool = ()  # the baseline without parameters changes no element
 
     def _corrections(self, problem: Problem, theta, tangents) -> np.ndarray:
@@ -135,8 +136,8 @@ class Bases:
         assembled once, at θ_b."""
         self._pool = eids
         if eids is not None:
-            full, part = (self._matrices(self._theta, self._problem, p) for p in (None, eids))
-            self._rest = tuple(a.tocsr() - b.tocsr() for a, b in zip(full, part))
+            part = self._matrices(self._theta, self._problem, eids)
+            self._rest = tuple(a - b.tocsr() for a, b in zip(self._full, part))
 
     def _changed(self, theta, problem: Problem) -> np.ndarray | None:
         """Ids of the elements whose data change with any parameter (the engineer's and the

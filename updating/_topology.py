@@ -4,7 +4,7 @@ elements at a grid, property groups and their halves, total mass, stiffness scal
 from __future__ import annotations
 
 import functools
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 
 import jax
 import jax.numpy as jnp
@@ -71,12 +71,12 @@ def _structural(model: Model) -> Iterator[tuple[str, np.ndarray, np.ndarray, np.
             yield name, b.ids, b.pids, b.nodes
 
 
-def elements_at(model: Model, node: int) -> dict[int, int]:
-    """Structural element id → pid of the elements attached to a grid."""
-    row = int(model.node_index([node])[0])
+def elements_at(model: Model, node: int | Sequence[int]) -> dict[int, int]:
+    """Structural element id → pid of the elements attached to a grid (to any of several)."""
+    rows = model.node_index(np.atleast_1d(node))
     out = {}
     for _, ids, pids, nodes in _structural(model):
-        hit = np.any(nodes == row, axis=1)
+        hit = np.isin(nodes, rows).any(axis=1)
         out.update({int(e): int(p) for e, p in zip(ids[hit], pids[hit])})
     return out
 
