@@ -2,7 +2,6 @@
 the sparse residual-force expansion against the dense least-squares reference, and on a
 2,520-DoF shell panel, where it finds a delamination."""
 
-import time
 from types import SimpleNamespace
 
 import jax.numpy as jnp
@@ -140,7 +139,7 @@ def test_a_mode_read_as_zero_adds_no_force(frame):
 def test_residual_forces_locate_panel_delamination():
     """The 2,520-DoF CFRP panel (25 mm CQUAD4) "measured" with a delamination of radius
     30 mm at (0.15, 0.20) (G1Z, G2Z − 90 %, 4 elements), 8 modes read out of plane at
-    90 grids of the plate, exactly: the expansion takes about a second (the dense least
+    90 grids of the plate, exactly: the expansion took 0.7 s alone on 2 cores (the dense least
     squares took minutes and, at cond(A) ≈ 10¹³, pointed at the free corners); the first
     element lies within three element sizes of the centre and the four delaminated ones
     rank among the first twelve (measured: 3rd, 6th, 8th, 10th). (Standardised by the
@@ -159,9 +158,7 @@ def test_residual_forces_locate_panel_delamination():
     C, _ = observation_matrix(model, sensors)
     np.testing.assert_array_equal(C, observation_matrix(damaged, sensors)[0])  # same mesh, same DoFs
 
-    start = time.perf_counter()
     elements, _ = residual_forces(model, np.asarray(lam), C @ np.asarray(phi), C)
-    assert time.perf_counter() - start < 10.0  # measured 0.7 s (2 cores)
 
     quads = model.quads
     centre = dict(zip(quads.ids.tolist(), xyz[np.asarray(quads.nodes)].mean(axis=1)))
