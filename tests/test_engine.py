@@ -15,7 +15,7 @@ from updating import Noise, Options, Parameter, ParameterSet, build_problem, n_m
     perturb, simulate_test
 from updating._compiled import Compiled
 from updating._eigensolvers import Direct
-from updating._engine import Settings, run
+from updating._engine import Settings, linearise, run
 from updating._qr import HouseholderQR
 from updating._residuals import residuals
 
@@ -53,6 +53,22 @@ def test_run_converges_and_keeps_its_history(frame):
     assert np.all(np.diff(np.asarray(h.cost[: n + 1])) < 0)  # Gauss–Newton near a zero-residual solution
     assert float(state.change) <= 1e-9
     np.testing.assert_allclose(np.asarray(h.freq_dev[n]), 0.0, atol=1e-9)
+
+
+def test_the_loop_keeps_the_jacobian_at_its_theta(frame):
+    """The Jacobian the loop returns is that of a fresh linearisation at its θ: at the
+    last accepted iterate of a Levenberg–Marquardt fit stopped early, and at θ₀ when the
+    run only evaluates (``skip``), where it takes no step."""
+    model, pset, truth, sensors = frame
+    problem = build_problem(model, simulate_test(truth, sensors, 6), pset)
+    lm = Settings(False, 1e-9, 2, 8)
+    theta0 = jnp.asarray([0.05, 0.0, -0.02])
+    for skip in (False, True):
+        state = Compiled(run)(theta0, problem, Direct(), jnp.zeros(0), lm, jnp.asarray(skip))
+        eps, jac, aux = linearise(state.theta, problem, jnp.zeros(0), Direct())
+        assert bool(jnp.all(state.theta == theta0)) == skip and state.jacobian.dtype == jnp.float64
+        np.testing.assert_allclose(state.jacobian, jac, rtol=1e-12, atol=1e-12 * float(jnp.max(jnp.abs(jac))))
+        np.testing.assert_allclose(state.evaluation.lam_a, aux.ev.lam_a, rtol=1e-12)
 
 
 def test_iteration_cap_is_not_convergence(frame):

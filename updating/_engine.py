@@ -70,8 +70,8 @@ class History(eqx.Module):
 
 class State(eqx.Module):
     """The loop state after :func:`run`: ``theta`` (the last accepted iterate), the
-    Optimistix state's arrays, the warm start, counts, flags, the history, and the
-    evaluations at the start and at ``theta``."""
+    Optimistix state's arrays, the warm start, counts, flags, the history, the
+    evaluations at the start and at ``theta``, and the Jacobian there."""
 
     theta: Float[Array, " p"]
     solver: object
@@ -86,6 +86,7 @@ class State(eqx.Module):
     history: History
     start: Evaluation
     evaluation: Evaluation
+    jacobian: Float[Array, "m p"]  # of ε at ``theta``: the one the loop made there
 
 
 class _Aux(eqx.Module):
@@ -157,8 +158,8 @@ def run(theta0: Float[Array, " p"], problem: Problem, eigensolver: AbstractEigen
     """Update from ``theta0``: the loop of :func:`updating.update`, one jittable function.
 
     **Arguments:** the start θ₀ = log(1 + α₀); the :class:`Problem`; the eigensolver and
-    its first warm start; the :class:`Settings`; ``skip``: take no step (padding samples
-    of a batch); ``progress(iteration, α, cost, Δf, MAC)``: called on the host after
+    its first warm start; the :class:`Settings`; ``skip``: evaluate θ₀ and take no step
+    (a cost; padding samples of a batch); ``progress(iteration, α, cost, Δf, MAC)``: called on the host after
     every accepted iterate (``jax.debug.callback``; not under ``vmap``).
 
     **Returns:** the final :class:`State`.
@@ -199,14 +200,18 @@ def run(theta0: Float[Array, " p"], problem: Problem, eigensolver: AbstractEigen
         converged = (moved & (change <= settings.tolerance)) | (opt.terminate & ~moved)
         steps = s.steps + 1
         done = converged | (accepted >= settings.max_iterations) | (steps >= settings.max_steps) \
-            | ~jnp.all(jnp.isfinite(new))
+            | ~jnp.all(jnp.isfinite(new)) | skip
         start = jax.tree.map(lambda a, b: jnp.where(first, a, b), aux.ev, s.start)
         return State(new, eqx.filter(opt, eqx.is_array), aux.warm, accepted, steps, converged,
                      jnp.where(moved, change, s.change), s.solved & aux.solved,
-                     s.refreshes + aux.refreshed.astype(jnp.int32), done, history, start, aux.ev)
+                     s.refreshes + aux.refreshed.astype(jnp.int32), done, history, start, aux.ev,
+                     s.jacobian)
 
     ev0 = jax.tree.map(jnp.zeros_like, arrays.aux.ev)
     s0 = State(theta0, arrays, warm, jnp.asarray(0), jnp.asarray(0), jnp.asarray(False),
-               jnp.asarray(jnp.inf, theta0.dtype), jnp.asarray(True), jnp.asarray(0), jnp.asarray(skip), history,
-               ev0, ev0)
-    return jax.lax.while_loop(lambda s: ~s.done, body, s0)
+               jnp.asarray(jnp.inf, theta0.dtype), jnp.asarray(True), jnp.asarray(0), jnp.asarray(False), history,
+               ev0, ev0, jnp.zeros(f_struct.shape + (n_p,), theta0.dtype))
+    final = jax.lax.while_loop(lambda s: ~s.done, body, s0)
+    # the last accepted linearisation, at ``theta`` (the Jacobian a second solve would make)
+    jac = eqx.combine(final.solver, static).f_info.jac.as_matrix()
+    return eqx.tree_at(lambda s: s.jacobian, final, jac)

@@ -37,7 +37,7 @@ from ._candidates import Candidate
 from ._compiled import Compiled
 from ._effects import SCAN
 from ._eigensolvers import AbstractEigensolver, Direct
-from ._engine import Settings, linearise, run
+from ._engine import Settings, run
 from ._extension import Extension
 from ._report import rms_pct
 from ._residuals import Problem, rows
@@ -63,8 +63,7 @@ def _solve_one(theta0, problem: Problem, settings: Settings, skip, solver: Abstr
     fitted and held-out costs (frequency, shape), the paired eigenvalues and MAC, and the
     Jacobian of the residual rows."""
     state = run(theta0, problem, solver, jnp.zeros(0), settings, skip)
-    _, jac, aux = linearise(state.theta, problem, jnp.zeros(0), solver)
-    ev = aux.ev
+    ev, jac = state.evaluation, state.jacobian
     fit, held = (_cost_parts(state.theta, problem, mask, ev) for mask in (problem.active, ~problem.active))
     return state.theta, fit, held, ev.lam_a, ev.paired, ev.mac, jac[:-state.theta.shape[0]]
 
