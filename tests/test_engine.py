@@ -71,6 +71,27 @@ def test_the_loop_keeps_the_jacobian_at_its_theta(frame):
         np.testing.assert_allclose(state.evaluation.lam_a, aux.ev.lam_a, rtol=1e-12)
 
 
+def test_a_padded_fit_is_the_unpadded_fit(frame):
+    """A diagnosis' fit pads θ with inert entries (one compiled fit for extensions of one
+    and of two parameters): θ, costs and Jacobian are those of the loop run unpadded."""
+    from updating._evidence import Fits, _cost_parts, with_extension
+    from updating._extension import extension
+
+    model, pset, truth, sensors = frame
+    problem = build_problem(model, simulate_test(truth, sensors, 6), pset)
+    beams = np.asarray(problem.model(jnp.zeros(3)).beams.ids)
+    ext = extension(problem.model(jnp.zeros(3)), k_log=beams[:3])
+    p = with_extension(problem, ext, np.ones(6, bool))
+    settings = Settings(False, 1e-10, 30, 120)
+    theta0 = jnp.asarray([0.0, 0.0, 0.0, 0.2])
+    state = Compiled(run)(theta0, p, Direct(), jnp.zeros(0), settings)
+    theta, (cf, cs), _, lam_a, _, _, jac = Fits(settings).solve(theta0, p)
+    assert theta.shape == (4,) and jac.shape == (state.jacobian.shape[0] - 4, 4)
+    np.testing.assert_allclose(theta, state.theta, rtol=1e-7, atol=1e-9)
+    np.testing.assert_allclose([cf, cs], _cost_parts(state.theta, p, p.active, state.evaluation), rtol=1e-7)
+    np.testing.assert_allclose(jac, state.jacobian[:-4], rtol=1e-6, atol=1e-9 * float(jnp.max(jnp.abs(jac))))
+
+
 def test_iteration_cap_is_not_convergence(frame):
     model, pset, truth, sensors = frame
     problem = build_problem(model, simulate_test(truth, sensors, 6), pset)

@@ -120,3 +120,33 @@ def test_pool_holds_the_engineers_parameters_too(case):
     assert bases.reduced(problem, ext, np.zeros(1)).pool is None
     bases.pool = tuple(sorted(set(ids) | set(aug.element_ids(pids=(pid,)).tolist())))
     assert bases.reduced(problem, ext, np.zeros(1)).pool == bases.pool
+
+
+def test_a_groups_factor_is_projected_once(joint):
+    """Without the engineer's parameters, a candidate scaling whole elements' stiffness and
+    mass (a group's factor) changes the reduced matrices along one projected derivative
+    each: no assembly at any θ, and the same eigenvalues and derivatives as assembling
+    the whole model in the same basis. A candidate that also wakes an element does not
+    qualify."""
+    from updating._eigensolvers import Reduced
+
+    problem, _, c, _, (bases, springs) = joint
+    aug = problem.structure.value
+    pids = sorted(set(np.asarray(aug.beams.pids).tolist()))
+    ext = extension(aug, k_log=aug.element_ids(pids=(pids[0],)), m_log=aug.element_ids(pids=(pids[1],)))
+    bases.pool = tuple(sorted(springs))
+    try:
+        red = bases.reduced(problem, ext, np.zeros(1))
+        woken = bases.reduced(problem, extension(aug, k_log=aug.element_ids(pids=(pids[0],)), k_add=springs[:1]),
+                              np.zeros(1))
+    finally:
+        bases.pool = None
+    assert red.linear is not None and woken.linear is None
+    whole = Reduced(red.basis, red.padding)
+    p = with_extension(problem, ext)
+    lam = lambda solver, t: solver(t, p, jnp.zeros(0))[0].lam_a  # noqa: E731
+    for theta in ([0.0], [-2.0], [1.5]):
+        t = jnp.asarray(theta)
+        np.testing.assert_allclose(lam(red, t), lam(whole, t), rtol=1e-9)
+        np.testing.assert_allclose(jax.jacfwd(lambda t: lam(red, t))(t), jax.jacfwd(lambda t: lam(whole, t))(t),
+                                   rtol=1e-7, atol=1e-9 * float(np.max(np.asarray(lam(whole, t)))))

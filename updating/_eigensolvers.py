@@ -95,7 +95,9 @@ class Reduced(AbstractEigensolver):
     so their derivatives are those of the reduced problem, exact (:func:`jaxfem.eigh`).
     With a ``pool`` of element ids holding every element that θ changes, only the pool
     is assembled: ``Vᵀ K(θ) V = fixed + Vᵀ K_pool(θ) V`` (``fixed``: the rest, constant),
-    exact and cheap on a large model. Accurate while the basis spans the changed shapes
+    exact and cheap on a large model. With ``linear`` (a group's factor, θ₀ alone moving,
+    :meth:`~updating._extension.Extension.scales_only`): ``Vᵀ K(θ) V = fixed +
+    (e^θ₀ − 1) Vᵀ ∂K V``, no assembly at all. Accurate while the basis spans the changed shapes
     (:mod:`updating._reduced`). Columns ``padding`` (zero, so that bases of different
     sizes share a compiled fit) enter as uncoupled modes far above the others."""
 
@@ -103,10 +105,14 @@ class Reduced(AbstractEigensolver):
     padding: Bool[Array, " r"]
     fixed: tuple[Float[Array, "r r"], Float[Array, "r r"]] | None = None
     pool: tuple[int, ...] | None = eqx.field(static=True, default=None)
+    linear: tuple[Float[Array, "r r"], Float[Array, "r r"]] | None = None
 
     def __call__(self, theta, problem, warm):
         V = self.basis
-        if self.pool is None:
+        if self.linear is not None:  # the extension's factor on a group, nothing else moving
+            g = problem.extension.factor(theta[len(problem.parameterisation.parameters)])
+            kr, mr = self.fixed[0] + g * self.linear[0], self.fixed[1] + g * self.linear[1]
+        elif self.pool is None:
             K, M = jaxfem.assemble(problem.model(theta))
             kr, mr = V.T @ K.matmul(V), V.T @ M.matmul(V)
         else:

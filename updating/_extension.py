@@ -57,6 +57,17 @@ class Extension(eqx.Module):
     def n_params(self) -> int:
         return 2 if self.visco or self.split or self.height else 1
 
+    def factor(self, theta0):
+        """The factor e^θ₀ − 1 by which :meth:`scales_only` changes its elements."""
+        return jnp.expm1(jnp.clip(theta0, -_THETA_MAX, _THETA_MAX))
+
+    def scales_only(self) -> bool:
+        """Whether θ₀ only multiplies whole elements' stiffness or mass by e^θ₀ (a group's
+        factor): then K(θ₀) = K(0) + (e^θ₀ − 1) ∂K/∂θ₀ exactly, and likewise M (on the host)."""
+        unit = all(np.isin(np.asarray(m), (0.0, 1.0)).all() for m in self.k_log + self.m_log)
+        inert = not any(np.any(np.asarray(m)) for m in self.k_add + self.m_add + self.part_log + self.nsm_add)
+        return unit and inert and not (self.visco or self.split or self.height)
+
     def __call__(self, model: Model, theta: Float[Array, " e"]) -> Model:
         theta = jnp.clip(theta, -_THETA_MAX, _THETA_MAX)  # a wild trial step stays finite
         s = jnp.exp(theta[0])

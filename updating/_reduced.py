@@ -21,8 +21,10 @@ error is of second order in the shapes' error. The baseline's part is made once.
 A fit step then costs what the elements θ changes cost: with a ``pool`` of element ids
 (the diagnosis' region, :attr:`Bases.pool`) that holds every element a candidate
 changes, only the pool is assembled and projected at each θ, the rest once
-(:class:`~updating._eigensolvers.Reduced`); a candidate changing anything else (a whole
-group, a material) assembles the whole model at each θ.
+(:class:`~updating._eigensolvers.Reduced`). A group's factor alone (no engineer's
+parameters) changes K and M along one matrix each, projected once: no assembly at any θ.
+A candidate changing anything else (a material, a group beside the engineer's
+parameters) assembles the whole model at each θ.
 """
 
 from __future__ import annotations
@@ -38,11 +40,11 @@ from jaxfem import ELEMENT_BLOCKS
 from ._compiled import Compiled
 from ._eigensolvers import Reduced
 from ._element_sensitivity import _modes
-from ._evidence import with_extension
+from ._evidence import EXTENSION_PARAMS, with_extension
 from ._residuals import Problem, pair
 
 ATTACH_MAX = 400  # DoFs a candidate may touch for attachment columns; more: first-order columns
-WIDTHS = (64, 1.5, 32)  # a basis is padded to the next width of 64, then ×1.5 in multiples of 32 (one compiled fit per width)
+WIDTHS = (96, 2.0, 32)  # a basis is padded to the next width of 96, then ×2 (one compiled fit per width)
 MASS_FLOOR = 1e-10  # basis directions of M-norm² below this share of the largest are dropped
 
 
@@ -75,6 +77,12 @@ def _touched(theta, problem: Problem, tangents, pool):
     return jnp.sum(jax.lax.map(one, tangents), axis=0)
 
 
+def _derivative(theta, problem: Problem, d):
+    """∂K, ∂M along the direction ``d`` (the whole model), element-stacked."""
+    (K, M), (dK, dM) = jax.jvp(lambda t: jaxfem.assemble(problem.model(t)), (theta,), (d,))
+    return K.with_values(dK.values()), M.with_values(dM.values())
+
+
 def _changes(theta, problem: Problem, d):
     """Along the direction ``d``: per element block, Σ |∂| of each element's data; and Σ |∂|
     of everything else in the model (materials, sections, a law)."""
@@ -104,7 +112,7 @@ class Bases:
         # the matrices are compiled once for all candidates (their masks are arrays), their
         # products taken on the host (a compiled product would compile anew at every basis width)
         self._loads, self._touched, self._matrices = Compiled(_loads), Compiled(_touched), Compiled(_assembled)
-        self._changes = Compiled(_changes)
+        self._changes, self._derivative = Compiled(_changes), Compiled(_derivative)
         self._problem, self._theta = problem, jnp.asarray(theta_b, dtype=jnp.float64)
         theta = self._theta
         self.modes = _modes(problem, theta, problem.model(theta))  # also the baseline's screen's
@@ -139,11 +147,11 @@ class Bases:
             part = self._matrices(self._theta, self._problem, eids)
             self._rest = tuple(a - b.tocsr() for a, b in zip(self._full, part))
 
-    def _changed(self, theta, problem: Problem) -> np.ndarray | None:
-        """Ids of the elements whose data change with any parameter (the engineer's and the
-        candidate's); None when anything else of the model changes too."""
+    def _changed(self, theta, problem: Problem, n: int) -> np.ndarray | None:
+        """Ids of the elements whose data change with any of the first ``n`` parameters (the
+        engineer's and the candidate's); None when anything else of the model changes too."""
         ids = []
-        for d in np.eye(len(theta)):
+        for d in np.eye(len(theta))[:n]:
             blocks, rest = self._changes(theta, problem, jnp.asarray(d))
             if float(rest) != 0.0:
                 return None
@@ -156,10 +164,13 @@ class Bases:
         the :attr:`pool` when that holds every element the parameters change."""
         p = with_extension(problem, ext)
         theta_c = np.atleast_1d(np.asarray(theta_c, float))
-        theta = jnp.asarray(np.concatenate([self.theta_b, theta_c]))
-        tangents = jnp.asarray(np.eye(len(theta))[self.n_b:])
-        changed = self._changed(theta, p) if self.pool is not None else None
+        # padded as the fits are (EXTENSION_PARAMS): one compiled function for every kind
+        n = self.n_b + len(theta_c)
+        theta = jnp.asarray(np.concatenate([self.theta_b, theta_c, np.zeros(EXTENSION_PARAMS - len(theta_c))]))
+        tangents = jnp.asarray(np.eye(len(theta))[self.n_b:] * (np.arange(EXTENSION_PARAMS) < len(theta_c))[:, None])
+        changed = self._changed(theta, p, n) if self.pool is not None else None
         pool = self.pool if changed is not None and np.isin(changed, self.pool).all() else None
+        linear = pool is None and self.n_b == 0 and ext.scales_only()
         touched = np.flatnonzero(np.asarray(self._touched(theta, p, tangents, pool)))
         M = self._matrices(theta, p, pool)[1].tocsr() + (self._rest[1] if pool is not None else 0)
         if len(touched) <= ATTACH_MAX:
@@ -174,14 +185,17 @@ class Bases:
         V = _orthonormal(V, V.T @ (M @ V))
         columns, r = V.shape[1], _width(V.shape[1])
         V, padding = np.pad(V, ((0, 0), (0, r - columns))), jnp.arange(r) >= columns
+        project = lambda matrices: tuple(jnp.asarray(V.T @ (A @ V)) for A in matrices)  # noqa: E731
+        if linear:
+            derivative = self._derivative(theta, p, tangents[0])
+            return Reduced(jnp.asarray(V), padding, project(self._full), linear=project(A.tocsr() for A in derivative))
         if pool is None:
             return Reduced(jnp.asarray(V), padding)
-        fixed = tuple(jnp.asarray(V.T @ (A @ V)) for A in self._rest)
-        return Reduced(jnp.asarray(V), padding, fixed, pool)
+        return Reduced(jnp.asarray(V), padding, project(self._rest), pool)
 
 
 def _width(columns: int) -> int:
-    """The padded width of a basis of ``columns`` (:data:`WIDTHS`: 64, 96, 160, 256, 384, 576, ...)."""
+    """The padded width of a basis of ``columns`` (:data:`WIDTHS`: 96, 192, 384, 768, ...)."""
     r, growth, multiple = WIDTHS
     while r < columns:
         r = -(-int(r * growth) // multiple) * multiple
