@@ -90,8 +90,7 @@ class Fits:
         return (out[0][:n], *out[1:-1], out[-1][:, :n])
 
     def cost(self, theta, problem: Problem, solver: AbstractEigensolver = Direct()) -> float:
-        out = self._solve(jnp.asarray(theta), problem, self.settings, jnp.asarray(True), solver)
-        return float(sum(out[1]))
+        return float(sum(self.solve(theta, problem, solver, skip=True)[1]))
 
 
 def with_extension(problem: Problem, ext: Extension, mask=None) -> Problem:

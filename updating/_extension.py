@@ -10,7 +10,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float
+from jaxtyping import Array, Bool, Float
 
 import jaxfem
 from jaxfem import Model
@@ -49,13 +49,13 @@ class Extension(eqx.Module):
     offset_1: Float[Array, "n 3"]
     inertia_1: Float[Array, "n 3 3"]
     inertia_2: Float[Array, "n 3 3"]
+    split: Bool[Array, ""]
+    height: Bool[Array, ""]
     visco: bool = eqx.field(static=True)
-    split: bool = eqx.field(static=True)
-    height: bool = eqx.field(static=True, default=False)
 
     @property
     def n_params(self) -> int:
-        return 2 if self.visco or self.split or self.height else 1
+        return 2 if self.visco or bool(self.split) or bool(self.height) else 1
 
     def factor(self, theta0):
         """The factor e^θ₀ − 1 by which :meth:`scales_only` changes its elements."""
@@ -66,12 +66,14 @@ class Extension(eqx.Module):
         factor): then K(θ₀) = K(0) + (e^θ₀ − 1) ∂K/∂θ₀ exactly, and likewise M (on the host)."""
         unit = all(np.isin(np.asarray(m), (0.0, 1.0)).all() for m in self.k_log + self.m_log)
         inert = not any(np.any(np.asarray(m)) for m in self.k_add + self.m_add + self.part_log + self.nsm_add)
-        return unit and inert and not (self.visco or self.split or self.height)
+        return unit and inert and not (self.visco or bool(self.split) or bool(self.height))
 
     def __call__(self, model: Model, theta: Float[Array, " e"]) -> Model:
         theta = jnp.clip(theta, -_THETA_MAX, _THETA_MAX)  # a wild trial step stays finite
         s = jnp.exp(theta[0])
-        second = theta[-1] if self.split else 0.0
+        # θ₁ enters through masks that are zero unless it is this extension's (``split``,
+        # ``height``): one compiled fit serves every extension of one or two parameters
+        second = theta[1] if theta.shape[0] > 1 else jnp.zeros((), theta.dtype)
         for name, log, log2, add in zip(K_BLOCKS, self.k_log, self.k_log_2, self.k_add):
             blk = getattr(model, name)
             model = eqx.tree_at(lambda m, name=name: getattr(m, name).k_scale, model,
@@ -84,11 +86,10 @@ class Extension(eqx.Module):
             blk = getattr(model, name)
             model = eqx.tree_at(lambda m, name=name: (getattr(m, name).parts, getattr(m, name).nsm), model,
                                 (blk.parts * jnp.exp(theta[0] * part), blk.nsm + nsm * s))
-        if self.height:
-            h = theta[1]
-            model = eqx.tree_at(lambda m: (m.masses.offset, m.masses.inertia), model, (
-                model.masses.offset + h * self.offset_1,
-                model.masses.inertia + h * self.inertia_1 + h * h * self.inertia_2))
+        h = second
+        model = eqx.tree_at(lambda m: (m.masses.offset, m.masses.inertia), model, (
+            model.masses.offset + h * self.offset_1,
+            model.masses.inertia + h * self.inertia_1 + h * h * self.inertia_2))
         if self.visco:
             a = self.a0 + jnp.expm1(jnp.minimum(theta[1], 1.0))  # a step of at most e − 1
             law = jaxfem.Viscoelastic(self.k_log, a, self.f_ref)
@@ -126,4 +127,5 @@ def extension(model: Model, *, k_log=(), k_add=(), m_log=(), m_add=(), f_ref: fl
     return Extension(masks(K_BLOCKS, k_log), masks(K_BLOCKS, k_add), masks(M_BLOCKS, m_log),
                      masks(M_BLOCKS, m_add), jnp.asarray(f_ref or 1.0), jnp.asarray(float(a0)),
                      masks(K_BLOCKS, k_log_2), parts, tuple(m * nsm for m in masks(SHELL_BLOCKS, nsm_add)),
-                     *(jnp.asarray(a) for a in moves.values()), f_ref is not None, len(k_log_2) > 0, bool(height))
+                     *(jnp.asarray(a) for a in moves.values()), jnp.asarray(len(k_log_2) > 0),
+                     jnp.asarray(bool(height)), f_ref is not None)
