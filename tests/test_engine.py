@@ -58,13 +58,13 @@ def test_run_converges_and_keeps_its_history(frame):
 def test_the_loop_keeps_the_jacobian_at_its_theta(frame):
     """The Jacobian the loop returns is that of a fresh linearisation at its θ: at the
     last accepted iterate of a Levenberg–Marquardt fit stopped early, and at θ₀ when the
-    run only evaluates (``skip``), where it takes no step."""
+    run only evaluates (``skip`` with ``evaluate_skipped``), where it takes no step."""
     model, pset, truth, sensors = frame
     problem = build_problem(model, simulate_test(truth, sensors, 6), pset)
     lm = Settings(False, 1e-9, 2, 8)
     theta0 = jnp.asarray([0.05, 0.0, -0.02])
     for skip in (False, True):
-        state = Compiled(run)(theta0, problem, Direct(), jnp.zeros(0), lm, jnp.asarray(skip))
+        state = Compiled(run)(theta0, problem, Direct(), jnp.zeros(0), lm, jnp.asarray(skip), None, True)
         eps, jac, aux = linearise(state.theta, problem, jnp.zeros(0), Direct())
         assert bool(jnp.all(state.theta == theta0)) == skip and state.jacobian.dtype == jnp.float64
         np.testing.assert_allclose(state.jacobian, jac, rtol=1e-12, atol=1e-12 * float(jnp.max(jnp.abs(jac))))

@@ -154,12 +154,13 @@ Progress = Callable[[int, np.ndarray, float, np.ndarray, np.ndarray], None]
 
 
 def run(theta0: Float[Array, " p"], problem: Problem, eigensolver: AbstractEigensolver, warm: Array,
-        settings: Settings, skip: Bool[Array, ""] | bool = False, progress: Progress | None = None) -> State:
+        settings: Settings, skip: Bool[Array, ""] | bool = False, progress: Progress | None = None,
+        evaluate_skipped: bool = False) -> State:
     """Update from ``theta0``: the loop of :func:`updating.update`, one jittable function.
 
     **Arguments:** the start θ₀ = log(1 + α₀); the :class:`Problem`; the eigensolver and
-    its first warm start; the :class:`Settings`; ``skip``: evaluate θ₀ and take no step
-    (a cost; padding samples of a batch); ``progress(iteration, α, cost, Δf, MAC)``: called on the host after
+    its first warm start; the :class:`Settings`; ``skip``: take no step (padding samples
+    of a batch; with ``evaluate_skipped``, θ₀ is evaluated: a cost, its Jacobian); ``progress(iteration, α, cost, Δf, MAC)``: called on the host after
     every accepted iterate (``jax.debug.callback``; not under ``vmap``).
 
     **Returns:** the final :class:`State`.
@@ -209,7 +210,8 @@ def run(theta0: Float[Array, " p"], problem: Problem, eigensolver: AbstractEigen
 
     ev0 = jax.tree.map(jnp.zeros_like, arrays.aux.ev)
     s0 = State(theta0, arrays, warm, jnp.asarray(0), jnp.asarray(0), jnp.asarray(False),
-               jnp.asarray(jnp.inf, theta0.dtype), jnp.asarray(True), jnp.asarray(0), jnp.asarray(False), history,
+               jnp.asarray(jnp.inf, theta0.dtype), jnp.asarray(True), jnp.asarray(0),
+               jnp.asarray(False) if evaluate_skipped else jnp.asarray(skip), history,
                ev0, ev0, jnp.zeros(f_struct.shape + (n_p,), theta0.dtype))
     final = jax.lax.while_loop(lambda s: ~s.done, body, s0)
     # the last accepted linearisation, at ``theta`` (the Jacobian a second solve would make)

@@ -63,7 +63,7 @@ def _solve_one(theta0, problem: Problem, settings: Settings, skip, solver: Abstr
     """One fit by the engine (``skip``: none, evaluate at θ₀) with ``solver``; at its θ the
     fitted and held-out costs (frequency, shape), the paired eigenvalues and MAC, and the
     Jacobian of the residual rows."""
-    state = run(theta0, problem, solver, jnp.zeros(0), settings, skip)
+    state = run(theta0, problem, solver, jnp.zeros(0), settings, skip, evaluate_skipped=True)
     ev, jac = state.evaluation, state.jacobian
     fit, held = (_cost_parts(state.theta, problem, mask, ev) for mask in (problem.active, ~problem.active))
     return state.theta, fit, held, ev.lam_a, ev.paired, ev.mac, jac[:-state.theta.shape[0]]
