@@ -48,6 +48,13 @@ assemble only the elements their parameters change, :mod:`updating._reduced`):
   residual forces took 65 s and 131 s in the two runs.
 - an added-mass fit now takes 1 s instead of 20 s. Compilation is the largest share
   left: 255 s of the second run.
+
+**Fewer compiles, projected group factors** (same case, 2026-11-27, later, one machine):
+855 s before, **669 s** after (one compiled fit for every kind, the final Jacobian from
+the loop, a group's factor projected once, the element screen's JVP compiled whole;
+compiles over 1 s 276 s → 171 s), the same verdict and numbers. The grid topology made
+once per model then cut the region phase from 96 s to 31 s (measured alone; the whole
+run not repeated), about 605 s in all: the 10-minute aim is at the edge on this machine.
 """
 
 from __future__ import annotations

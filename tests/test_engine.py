@@ -88,7 +88,8 @@ def test_a_padded_fit_is_the_unpadded_fit(frame):
     theta, (cf, cs), _, lam_a, _, _, jac = Fits(settings).solve(theta0, p)
     assert theta.shape == (4,) and jac.shape == (state.jacobian.shape[0] - 4, 4)
     np.testing.assert_allclose(theta, state.theta, rtol=1e-7, atol=1e-9)
-    np.testing.assert_allclose([cf, cs], _cost_parts(state.theta, p, p.active, state.evaluation), rtol=1e-7)
+    np.testing.assert_allclose([cf, cs], _cost_parts(state.theta, p, p.active, state.evaluation), rtol=1e-7,
+                               atol=1e-9 * float(state.history.cost[0]))  # both near zero: the truth is reachable
     np.testing.assert_allclose(jac, state.jacobian[:-4], rtol=1e-6, atol=1e-9 * float(jnp.max(jnp.abs(jac))))
 
 
