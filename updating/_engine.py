@@ -160,8 +160,9 @@ def run(theta0: Float[Array, " p"], problem: Problem, eigensolver: AbstractEigen
 
     **Arguments:** the start θ₀ = log(1 + α₀); the :class:`Problem`; the eigensolver and
     its first warm start; the :class:`Settings`; ``skip``: take no step (padding samples
-    of a batch; with ``evaluate_skipped``, θ₀ is evaluated: a cost, its Jacobian); ``progress(iteration, α, cost, Δf, MAC)``: called on the host after
-    every accepted iterate (``jax.debug.callback``; not under ``vmap``).
+    of a batch; with ``evaluate_skipped``, θ₀ is still evaluated: a cost and its
+    Jacobian); ``progress(iteration, α, cost, Δf, MAC)``: called on the host after every
+    accepted iterate (``jax.debug.callback``; not under ``vmap``).
 
     **Returns:** the final :class:`State`.
     """

@@ -86,10 +86,9 @@ class Extension(eqx.Module):
             blk = getattr(model, name)
             model = eqx.tree_at(lambda m, name=name: (getattr(m, name).parts, getattr(m, name).nsm), model,
                                 (blk.parts * jnp.exp(theta[0] * part), blk.nsm + nsm * s))
-        h = second
         model = eqx.tree_at(lambda m: (m.masses.offset, m.masses.inertia), model, (
-            model.masses.offset + h * self.offset_1,
-            model.masses.inertia + h * self.inertia_1 + h * h * self.inertia_2))
+            model.masses.offset + second * self.offset_1,
+            model.masses.inertia + second * self.inertia_1 + second ** 2 * self.inertia_2))
         if self.visco:
             a = self.a0 + jnp.expm1(jnp.minimum(theta[1], 1.0))  # a step of at most e − 1
             law = jaxfem.Viscoelastic(self.k_log, a, self.f_ref)

@@ -52,8 +52,8 @@ def _loads(theta, problem: Problem, tangents, phi, lam):
     """``(∂K − λ_j ∂M) φ_j`` along each row of ``tangents``: (n, tangents × modes)."""
 
     def one(d):
-        (K, M), (dK, dM) = jax.jvp(lambda t: jaxfem.assemble(problem.model(t)), (theta,), (d,))
-        return K.with_values(dK.values()).matmul(phi) - M.with_values(dM.values()).matmul(phi) * lam
+        dK, dM = _derivative(theta, problem, d)
+        return dK.matmul(phi) - dM.matmul(phi) * lam
 
     out = jax.lax.map(one, tangents)
     return jnp.moveaxis(out, 0, 1).reshape(phi.shape[0], -1)
@@ -65,22 +65,22 @@ def _assembled(theta, problem: Problem, pool):
     return jaxfem.assemble(model if pool is None else model.restricted(pool))
 
 
+def _derivative(theta, problem: Problem, d, pool=None):
+    """∂K, ∂M along the direction ``d``, element-stacked, of the elements ``pool`` (all when None)."""
+    (K, M), (dK, dM) = jax.jvp(lambda t: _assembled(t, problem, pool), (theta,), (d,))
+    return K.with_values(dK.values()), M.with_values(dM.values())
+
+
 def _touched(theta, problem: Problem, tangents, pool):
     """Per DoF, Σ |∂K| + |∂M| over the rows along ``tangents``: nonzero where they touch
     (the elements ``pool`` assembled, all when None)."""
 
     def one(d):
-        (K, M), (dK, dM) = jax.jvp(lambda t: _assembled(t, problem, pool), (theta,), (d,))
-        ones = jnp.ones((K.n, 1))
-        return sum(A.with_values(jax.tree.map(jnp.abs, dA.values())).matmul(ones)[:, 0] for A, dA in ((K, dK), (M, dM)))
+        derivative = _derivative(theta, problem, d, pool)
+        ones = jnp.ones((derivative[0].n, 1))
+        return sum(A.with_values(jax.tree.map(jnp.abs, A.values())).matmul(ones)[:, 0] for A in derivative)
 
     return jnp.sum(jax.lax.map(one, tangents), axis=0)
-
-
-def _derivative(theta, problem: Problem, d):
-    """∂K, ∂M along the direction ``d`` (the whole model), element-stacked."""
-    (K, M), (dK, dM) = jax.jvp(lambda t: jaxfem.assemble(problem.model(t)), (theta,), (d,))
-    return K.with_values(dK.values()), M.with_values(dM.values())
 
 
 def _changes(theta, problem: Problem, d):
