@@ -23,6 +23,7 @@ eigensolver and its derivative rule share one.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib
 import os
@@ -186,47 +187,50 @@ class _SuperLU(_Factor):
 
 
 class _Pardiso(_Factor):
-    """MKL PARDISO through the ctypes handle of ``pypardiso`` (its wrapper copies the
-    index arrays and checks the matrix on every solve; here they are kept)."""
+    """MKL PARDISO called through the ctypes function that ``pypardiso`` finds (its wrapper
+    copies the index arrays and checks the matrix on every solve; here they are kept). A
+    factor holds its own handle, iparm and permutation arrays."""
 
     backend = "pardiso"
 
     def __init__(self, pat: SparsePattern, data: np.ndarray, definite: bool):
-        import pypardiso
-
-        self._solver = pypardiso.PyPardisoSolver(mtype=2 if definite else -2)
+        self._pardiso, self._pt_ctype, pt_type = _mkl_pardiso()
+        self._pt = np.zeros(64, dtype=pt_type)
+        self._iparm = np.zeros(64, dtype=np.int32)
+        self._perm = np.zeros(0, dtype=np.int32)
+        self._mtype = 2 if definite else -2
         self._lock = threading.Lock()
         self._n = pat.n
         self._data = np.ascontiguousarray(data[pat.upper])
         self._ia = pat.upper_indptr.astype(np.int32) + 1  # one-based
         self._ja = pat.upper_indices.astype(np.int32) + 1
-        self._solver.set_iparm(1, 1)  # iparm given here; the others zero = defaults
-        self._solver.set_iparm(2, 2)  # nested dissection ordering (METIS)
-        self._solver.set_iparm(8, 0)  # no iterative refinement: 5× the solve time; the callers' iterations correct
-        self._solver.set_iparm(10, 13 if definite else 8)  # pivot perturbation 1e-13 / 1e-8 (indefinite)
+        self._iparm[0] = 1  # iparm given here; the others zero = defaults
+        self._iparm[1] = 2  # nested dissection ordering (METIS)
+        self._iparm[7] = 0  # no iterative refinement: 5× the solve time; the callers' iterations correct
+        self._iparm[9] = 13 if definite else 8  # pivot perturbation 1e-13 / 1e-8 (indefinite)
         try:
             self._call(12, np.zeros((pat.n, 1), order="F"))
         except Exception as e:  # PyPardisoError: zero pivot, not positive definite
+            self._pt = None
             raise _singular(str(e)) from None
-        iparm = self._solver.iparm
-        self.memory = 1024 * int(max(iparm[14], iparm[15] + iparm[16]))
+        self.memory = 1024 * int(max(self._iparm[14], self._iparm[15] + self._iparm[16]))
 
     def _call(self, phase: int, b: np.ndarray) -> np.ndarray:
         import ctypes
 
         import pypardiso
 
-        s = self._solver
         x = np.zeros_like(b)
         error = ctypes.c_int32(0)
         i32, f64 = ctypes.POINTER(ctypes.c_int32), ctypes.POINTER(ctypes.c_double)
-        s._mkl_pardiso(s.pt.ctypes.data_as(ctypes.POINTER(s._pt_type[0])), ctypes.byref(ctypes.c_int32(1)),
-                       ctypes.byref(ctypes.c_int32(1)), ctypes.byref(ctypes.c_int32(s.mtype)),
-                       ctypes.byref(ctypes.c_int32(phase)), ctypes.byref(ctypes.c_int32(self._n)),
-                       self._data.ctypes.data_as(f64), self._ia.ctypes.data_as(i32), self._ja.ctypes.data_as(i32),
-                       s.perm.ctypes.data_as(i32), ctypes.byref(ctypes.c_int32(b.shape[1])),
-                       s.iparm.ctypes.data_as(i32), ctypes.byref(ctypes.c_int32(0)),
-                       b.ctypes.data_as(f64), x.ctypes.data_as(f64), ctypes.byref(error))
+        self._pardiso(self._pt.ctypes.data_as(ctypes.POINTER(self._pt_ctype)),
+                      ctypes.byref(ctypes.c_int32(1)), ctypes.byref(ctypes.c_int32(1)),
+                      ctypes.byref(ctypes.c_int32(self._mtype)), ctypes.byref(ctypes.c_int32(phase)),
+                      ctypes.byref(ctypes.c_int32(self._n)), self._data.ctypes.data_as(f64),
+                      self._ia.ctypes.data_as(i32), self._ja.ctypes.data_as(i32), self._perm.ctypes.data_as(i32),
+                      ctypes.byref(ctypes.c_int32(b.shape[1])), self._iparm.ctypes.data_as(i32),
+                      ctypes.byref(ctypes.c_int32(0)), b.ctypes.data_as(f64), x.ctypes.data_as(f64),
+                      ctypes.byref(error))
         if error.value != 0:
             raise pypardiso.pardiso_wrapper.PyPardisoError(error.value)
         return x
@@ -238,11 +242,22 @@ class _Pardiso(_Factor):
         return np.ascontiguousarray(x).reshape(b.shape)
 
     def __del__(self):
-        if getattr(self, "_solver", None) is not None and not sys.is_finalizing():  # MKL may be gone at exit
+        if getattr(self, "_pt", None) is not None and not sys.is_finalizing():  # MKL may be gone at exit
             try:
                 self._call(-1, np.zeros((self._n, 1), order="F"))  # release PARDISO's memory
             except Exception:
                 pass
+
+
+@functools.cache
+def _mkl_pardiso():
+    """MKL's ``pardiso`` (ctypes, argument types set) and the handle's integer type (ctypes,
+    NumPy), found once: ``pypardiso.PyPardisoSolver()`` searches for the library at every
+    construction (a recursive glob of the environment: 1.4 s measured)."""
+    import pypardiso
+
+    s = pypardiso.PyPardisoSolver()
+    return s._mkl_pardiso, *s._pt_type
 
 
 def _singular(detail: str) -> ValueError:
