@@ -142,7 +142,7 @@ def test_a_groups_factor_is_projected_once(joint):
     finally:
         bases.pool = None
     assert red.linear is not None and woken.linear is None
-    whole = Reduced(red.basis, red.padding)
+    whole = Reduced(red.basis, red.padding, red.observed)
     p = with_extension(problem, ext)
     lam = lambda solver, t: solver(t, p, jnp.zeros(0))[0].lam_a  # noqa: E731
     for theta in ([0.0], [-2.0], [1.5]):

@@ -99,10 +99,13 @@ class Reduced(AbstractEigensolver):
     :meth:`~updating._extension.Extension.scales_only`): ``Vᵀ K(θ) V = fixed +
     (e^θ₀ − 1) Vᵀ ∂K V``, no assembly at all. Accurate while the basis spans the changed shapes
     (:mod:`updating._reduced`). Columns ``padding`` (zero, so that bases of different
-    sizes share a compiled fit) enter as uncoupled modes far above the others."""
+    sizes share a compiled fit) enter as uncoupled modes far above the others. ``observed``:
+    the basis at the sensors, C V, formed once (C V at every θ took a fifth of a reduced
+    evaluation at 33,000 DoFs)."""
 
     basis: Float[Array, "n r"]
     padding: Bool[Array, " r"]
+    observed: Float[Array, "s r"]
     fixed: tuple[Float[Array, "r r"], Float[Array, "r r"]] | None = None
     pool: tuple[int, ...] | None = eqx.field(static=True, default=None)
     linear: tuple[Float[Array, "r r"], Float[Array, "r r"]] | None = None
@@ -121,7 +124,7 @@ class Reduced(AbstractEigensolver):
         top = jax.lax.stop_gradient(1e3 * jnp.max(jnp.abs(jnp.diagonal(kr))) + 1.0)
         kr, mr = kr + jnp.diag(jnp.where(self.padding, top, 0.0)), mr + jnp.diag(self.padding.astype(mr.dtype))
         lam, y = jaxfem.eigh(0.5 * (kr + kr.T), 0.5 * (mr + mr.T), problem.n_model)
-        phi_s = (problem.C @ V) @ y
+        phi_s = self.observed @ y
         index, paired = pair(lam, phi_s, problem)
         safe = jnp.where(paired, index, 0)
         ev = paired_evaluation(lam[safe], phi_s[:, safe], index, paired, lam, phi_s, problem)

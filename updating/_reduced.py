@@ -185,13 +185,14 @@ class Bases:
         V = _orthonormal(V, V.T @ (M @ V))
         columns, r = V.shape[1], _width(V.shape[1])
         V, padding = np.pad(V, ((0, 0), (0, r - columns))), jnp.arange(r) >= columns
+        head = (jnp.asarray(V), padding, jnp.asarray(np.asarray(problem.C) @ V))
         project = lambda matrices: tuple(jnp.asarray(V.T @ (A @ V)) for A in matrices)  # noqa: E731
         if linear:
             derivative = self._derivative(theta, p, tangents[0])
-            return Reduced(jnp.asarray(V), padding, project(self._full), linear=project(A.tocsr() for A in derivative))
+            return Reduced(*head, project(self._full), linear=project(A.tocsr() for A in derivative))
         if pool is None:
-            return Reduced(jnp.asarray(V), padding)
-        return Reduced(jnp.asarray(V), padding, project(self._rest), pool)
+            return Reduced(*head)
+        return Reduced(*head, project(self._rest), pool)
 
 
 def _width(columns: int) -> int:
