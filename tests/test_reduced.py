@@ -150,3 +150,23 @@ def test_a_groups_factor_is_projected_once(joint):
         np.testing.assert_allclose(lam(red, t), lam(whole, t), rtol=1e-9)
         np.testing.assert_allclose(jax.jacfwd(lambda t: lam(red, t))(t), jax.jacfwd(lambda t: lam(whole, t))(t),
                                    rtol=1e-7, atol=1e-9 * float(np.max(np.asarray(lam(whole, t)))))
+
+
+def test_candidate_fits_on_two_threads_equal_one_thread(joint):
+    """The diagnosis fits its candidates on a thread per CPU (one compiled fit shared): the
+    same θ₀, θ and cost, in the same order, as one after another."""
+    from updating._diagnose import _threaded
+    from updating._eigensolvers import Direct
+    from updating._evidence import candidate_fit
+
+    problem, fits, c, red, _ = joint
+    jobs = [(0, c.ext, np.zeros(0), None, np.array([0.0, -4.6]), Direct()),
+            (1, c.ext, np.zeros(0), c.scan, np.zeros(2), red),
+            (2, c.ext, np.zeros(0), None, np.array([-1.0, -3.0]), red)]
+    fitted = lambda job: (job[0], candidate_fit(fits, problem, *job[1:]))  # noqa: E731
+    one, two = list(_threaded(fitted, jobs, 1)), list(_threaded(fitted, jobs, 2))
+    assert [k for k, _ in two] == [0, 1, 2]
+    for (_, (t0, a)), (_, (u0, b)) in zip(one, two):
+        np.testing.assert_array_equal(t0, u0)
+        np.testing.assert_allclose(b["theta"], a["theta"], rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(b["cost"], a["cost"], rtol=1e-9)

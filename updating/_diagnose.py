@@ -33,8 +33,10 @@ as their accuracies say.
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 
 import jax.numpy as jnp
@@ -120,6 +122,8 @@ class DiagnoseOptions:
     ``ray``: the shortlisted candidates fitted on Ray workers (``"local"``, ``"auto"`` or
     a cluster address, :func:`updating._ray.fit_candidates_ray`; ``ray_workers`` of them,
     default one per CPU); the hill-climb and the cross-validation stay on the driver.
+    ``threads``: without Ray, the shortlisted candidates are fitted on this many threads of
+    this process, sharing its compiled fit (None: one per CPU; 1: one after another).
     """
 
     noise_freq: float = 0.002
@@ -139,6 +143,7 @@ class DiagnoseOptions:
     reduce_above: int = 2000
     ray: str | None = None
     ray_workers: int | None = None
+    threads: int | None = None
 
     @property
     def settings(self) -> Settings:
@@ -283,7 +288,7 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
         say(f"  on Ray ({options.ray}): {len(jobs)} candidates")
         done = fit_candidates_ray(problem, options.settings, jobs, address=options.ray, workers=options.ray_workers)
     else:
-        done = ((job, candidate_fit(fits, problem, *job[1:])) for job in jobs)
+        done = _threaded(lambda job: (job, candidate_fit(fits, problem, *job[1:])), jobs, options.threads)
     for k, (job, (theta0, result)) in enumerate(done, 1):
         c = order[job[0]]
         c.theta0, c.result = theta0, result
@@ -350,6 +355,19 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     return Diagnosis(report, best, ranked, model, params, combine(
         {e: v for e, v in elem_a.items() if e in set(model.element_ids().tolist())}, elem_b), node_score,
         (np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model)))
+
+
+def _threaded(fn, jobs: list, threads: int | None):
+    """``fn(job)`` of each job, in order, on ``threads`` threads (None: one per CPU). The
+    fits share one compiled solver and XLA runs a reduced fit on about one core, so two
+    candidates are fitted at once on two cores."""
+    if threads is None:
+        threads = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    if threads <= 1 or len(jobs) <= 1:
+        yield from map(fn, jobs)
+        return
+    with ThreadPoolExecutor(threads) as pool:
+        yield from pool.map(fn, jobs)
 
 
 def _climb(best: Candidate, fitted_neighbours) -> list[tuple[Candidate, Candidate]]:
