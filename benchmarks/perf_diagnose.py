@@ -35,26 +35,18 @@ candidate fits on 2 Ray workers, for the speed-up against one process in the sam
 | barrel control | 32,850 | – | yes | 0.10 | – | 1.0 | 692 |
 
 The panel's held-out error stays above twice the noise of a difference (0.028 %), and
-the barrel takes longer than 10 minutes.
+the barrel then took longer than 10 minutes (now 524 s, below).
 
 **Ray** (``--cases frame-added-mass --ray local``, one run, 2026-11-27): 109.2 s in one
 process, 131.1 s with the candidate fits on 2 Ray workers (0.83×: each worker compiles
 the fit again, and one process already uses both cores), the same verdict.
 
-**Pool of elements** (``run_barrel(payload="grid")``, 2026-11-27, after the reduced fits began to
-assemble only the elements their parameters change, :mod:`updating._reduced`):
-- the same verdict, held-out 0.97 → 0.09 %, χ²/row 1.0;
-- 1,143 s, and 1,014 s in a second run. This machine was slower than on 2026-11-24: the
-  residual forces took 65 s and 131 s in the two runs.
-- an added-mass fit now takes 1 s instead of 20 s. Compilation is the largest share
-  left: 255 s of the second run.
-
-**Fewer compiles, projected group factors** (same case, 2026-11-27, later, one machine):
-855 s before, **669 s** after (one compiled fit for every kind, the final Jacobian from
-the loop, a group's factor projected once, the element screen's JVP compiled whole;
-compiles over 1 s 276 s → 171 s), the same verdict and numbers. The grid topology made
-once per model then cut the region phase from 96 s to 31 s (measured alone; the whole
-run not repeated), about 605 s in all: the 10-minute aim is at the edge on this machine.
+**Real size, now** (``run_barrel(payload="grid")``, one process alone, 2026-11-27): the same
+verdict and numbers as above (held-out 0.97 → 0.09 %, χ²/row 898.6 → 0.98, posterior 1.00)
+in **524 s**, under the 10-minute aim; 647 s on the same machine that morning, before
+PARDISO was found once per process, C V formed once per basis and the candidates fitted
+on two threads. The control claims nothing (χ²/row 0.97, held-out 0.10 %) in 568 s.
+Phases: docs/diagnosis.md ("Large models").
 """
 
 from __future__ import annotations

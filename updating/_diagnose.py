@@ -123,7 +123,8 @@ class DiagnoseOptions:
     a cluster address, :func:`updating._ray.fit_candidates_ray`; ``ray_workers`` of them,
     default one per CPU); the hill-climb and the cross-validation stay on the driver.
     ``threads``: without Ray, the shortlisted candidates are fitted on this many threads of
-    this process, sharing its compiled fit (None: one per CPU; 1: one after another).
+    this process, sharing its compiled fit (None: one per CPU, at most ``OMP_NUM_THREADS``;
+    1: one after another).
     """
 
     noise_freq: float = 0.002
@@ -358,11 +359,14 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
 
 
 def _threaded(fn, jobs: list, threads: int | None):
-    """``fn(job)`` of each job, in order, on ``threads`` threads (None: one per CPU). The
-    fits share one compiled solver and XLA runs a reduced fit on about one core, so two
-    candidates are fitted at once on two cores."""
+    """``fn(job)`` of each job, in order, on ``threads`` threads (None: one per CPU this
+    process may use, at most ``OMP_NUM_THREADS`` where that is set: a process given one
+    thread, as a test worker beside others is, fits one candidate at a time). The fits
+    share one compiled solver."""
     if threads is None:
         threads = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+        budget = os.environ.get("OMP_NUM_THREADS", "")
+        threads = min(threads, int(budget)) if budget.isdigit() and int(budget) > 0 else threads
     if threads <= 1 or len(jobs) <= 1:
         yield from map(fn, jobs)
         return
