@@ -45,7 +45,7 @@ the fit again, and one process already uses both cores), the same verdict.
 verdict and numbers as above (held-out 0.97 → 0.09 %, χ²/row 898.6 → 0.98, posterior 1.00)
 in **524 s**, under the 10-minute aim; 647 s on the same machine that morning, before
 PARDISO was found once per process, C V formed once per basis and the candidates fitted
-on two threads. The control claims nothing (χ²/row 0.97, held-out 0.10 %) in 568 s.
+on two threads. The control claims nothing (χ²/row 0.97, held-out 0.10 %) in 568 s and 515 s (two runs).
 Phases: docs/diagnosis.md ("Large models").
 """
 
