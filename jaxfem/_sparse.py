@@ -210,8 +210,7 @@ class _Pardiso(_Factor):
         self._iparm[9] = 13 if definite else 8  # pivot perturbation 1e-13 / 1e-8 (indefinite)
         try:
             self._call(12, np.zeros((pat.n, 1), order="F"))
-        except Exception as e:  # PyPardisoError: zero pivot, not positive definite
-            self._pt = None
+        except Exception as e:  # PyPardisoError: zero pivot, not positive definite (its memory freed by __del__)
             raise _singular(str(e)) from None
         self.memory = 1024 * int(max(self._iparm[14], self._iparm[15] + self._iparm[16]))
 
