@@ -1,5 +1,5 @@
 """The diagnosis' reduced fits (updating._reduced): on the frame, a joint released by two
-orders of magnitude keeps its eigenvalues within 1e-4 of the full model's in the basis made
+orders of magnitude (and both factors by e⁻¹²) keeps its eigenvalues within 1e-4 of the full model's in the basis made
 at the stiff baseline; the reduced derivative equals finite differences; a fit on the
 reduced model lands where the full one does. The diagnosis through reduced fits:
 tests/test_diagnose.py::test_joint."""
@@ -54,20 +54,20 @@ def joint(case):
     base = fit(fits, problem, none, np.zeros(1))
     bases = Bases(with_extension(problem, none), base["theta"])
     c = next(c for c in structural_candidates(aug, stiffened) if c.reference.nodes == (NODE,))
-    springs = next(list(ids) + list(ids_2) for stiff, (ids, ids_2) in stiffened if stiff.nodes == (NODE,))
+    springs = next(r.ids() for r in stiffened if r.effect.nodes == (NODE,))
     return problem, fits, c, bases.reduced(problem, c.ext, np.zeros(2)), (bases, springs)
 
 
 def test_released_joint_eigenvalues_and_derivative(joint):
     problem, _, c, red, _ = joint
     p = with_extension(problem, c.ext)
-    for theta in ([0.0, 0.0], [0.0, -4.6], [-2.0, -6.0], [0.0, -9.0]):
+    for theta in ([0.0, 0.0], [0.0, -4.6], [-2.0, -6.0], [0.0, -9.0], [-12.0, -12.0]):
         t = jnp.asarray(theta)
         full, reduced = evaluate(t, p), red(t, p, jnp.zeros(0))[0]
         assert reduced.lam_a.dtype == jnp.float64
         assert np.max(np.abs(np.asarray(reduced.lam_a) / np.asarray(full.lam_a) - 1)) < 1e-4, theta
     lam = lambda t: red(t, p, jnp.zeros(0))[0].lam_a  # noqa: E731
-    t0, h = jnp.asarray([-1.0, -5.0]), 1e-6
+    t0, h = jnp.asarray([-1.0, -5.0]), 1e-4  # the reduced eigenvalues carry rounding of ~1e-11 relative
     fd = (lam(t0 + jnp.asarray([0.0, h])) - lam(t0 - jnp.asarray([0.0, h]))) / (2 * h)
     assert np.max(np.abs(jax.jacfwd(lam)(t0)[:, 1] - fd)) < 1e-5 * np.max(np.abs(fd))
 

@@ -9,10 +9,14 @@ changed model are sought in the span of
   each parameter's change exerts on the paired modes, ``(K − σM)⁻¹ (∂_i K − λ_j ∂_i M) φ_j``
   (the first-order modal expansion with its static correction, eq. 3.23 with eq. 3.28);
 - along a candidate's parameters (a local change): the static responses to unit loads at
-  every DoF the change touches, ``(K − σM)⁻¹ e_d`` (attachment modes), and one step of
-  inverse iteration on them, ``(K − σM)⁻¹ M (K − σM)⁻¹ e_d``. A change ΔK of any
-  size on those DoFs changes the static flexibility only in their span (Woodbury), so
-  these hold a joint released or a patch delaminated, not only a small step. A candidate
+  every DoF the change touches, ``(K − σM)⁻¹ e_d`` (attachment modes), and to the loads
+  the change exerts there, ``(K − σM)⁻¹ ∂K e_d`` (and ∂M), and one step of inverse
+  iteration on them, ``(K − σM)⁻¹ M (K − σM)⁻¹ ·``. A change ΔK of any size on those
+  DoFs changes the static flexibility only in their span (Woodbury), so these hold a
+  joint released or a patch delaminated, not only a small step. (The change loads hold
+  the motion across a connection held stiff: for unit loads alone it is the difference
+  of two nearly equal columns, which the M-orthonormalisation drops, and a seam softened
+  e⁻¹² left the reduced eigenvalues unchanged.) A candidate
   touching more than ``ATTACH_MAX`` DoFs (a whole group) gets the first-order columns.
 
 The basis is M-orthonormalised. The reduced eigenvalues are Rayleigh quotients, so their
@@ -158,6 +162,19 @@ class Bases:
             ids += [np.asarray(getattr(problem.structure.value, n).ids)[np.asarray(v) != 0] for n, v in blocks.items()]
         return np.unique(np.concatenate(ids)) if ids else np.zeros(0, np.int64)
 
+    def _change_loads(self, theta, problem: Problem, tangents, unit: np.ndarray) -> np.ndarray:
+        """``∂K e_d`` and ``∂M e_d`` along each tangent, for each touched DoF d: the loads a
+        change exerts across its own elements (a spring's k (e_a − e_b)). Their static
+        responses hold the motion across a connection released and held stiff (a joint, a
+        seam), which the unit loads' responses hold only as the difference of two nearly
+        equal columns, below :data:`MASS_FLOOR`."""
+        cols = []
+        for d in np.asarray(tangents):
+            if d.any():
+                cols += [np.asarray(A.matmul(jnp.asarray(unit))) for A in self._derivative(theta, problem, jnp.asarray(d))]
+        loads = np.concatenate(cols, axis=1) if cols else np.zeros((unit.shape[0], 0))
+        return loads[:, np.abs(loads).max(axis=0, initial=0.0) > 0]
+
     def reduced(self, problem: Problem, ext, theta_c) -> Reduced:
         """The :class:`Reduced` eigensolver of one candidate (``ext``, its θ at ``theta_c``):
         the baseline's columns and the candidate's (module docstring); it assembles only
@@ -176,7 +193,7 @@ class Bases:
         if len(touched) <= ATTACH_MAX:
             unit = np.zeros((len(self.phi), len(touched)))
             unit[touched, np.arange(len(touched))] = 1.0
-            static = np.asarray(self._solve(unit))
+            static = np.asarray(self._solve(np.concatenate([unit, self._change_loads(theta, p, tangents, unit)], axis=1)))
             dynamic = np.asarray(self._solve(M @ static))
             own = np.concatenate([static, dynamic], axis=1)
         else:
