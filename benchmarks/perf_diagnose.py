@@ -165,10 +165,50 @@ def payload_cards(model, target: int, payload: str) -> tuple[str, np.ndarray]:
     return text, centre
 
 
-def barrel_case(n_dof: int = 33_000, payload: str = "grid", control: bool = False):
+SEAM_ARC = 90.0  # degrees: the stretch of one frame over the crown that the barrel's truth leaves loose
+SEAM_K = 1.0e6  # N/m per m of seam: the loose stretch's translations (a riveted seam: about 1e9); rotations free
+HIDDEN = {"grid": "20 kg at floor grid", "rbe3": "20 kg on an RBE3 at floor grid",
+          "box": "20 kg box on an RBE3 at floor grid", "seam": "loose frame-to-skin seam, grids"}
+
+
+def loose_seam(text: str, n_dof: int) -> tuple[str, tuple[int, ...]]:
+    """The barrel's bulk data ``text`` (``fuselage.barrel_bdf(n_dof)``) with a loose
+    frame-to-skin seam, and its loose grids: on the frame nearest 0.65 L (neither the
+    joint's nor a suspension frame), the skin grids within :data:`SEAM_ARC`/2 of the
+    crown; the frame's CBARs there moved onto coincident new grids, each joined to its
+    skin grid by a CBUSH of :data:`SEAM_K` × its share of the seam (half the chord to each
+    neighbour) on the translations and nothing on the rotations."""
+    from benchmarks import fuselage as fz
+
+    layout = fz.barrel_layout(n_dof)
+    station = min((i for i in layout.frames if i != layout.joint), key=lambda i: abs(i - 0.65 * layout.na))
+    grid = lambda j: fz.SKIN + 1000 * station + j % layout.nc + 1  # noqa: E731
+    loose = [j for j in range(layout.nc) if abs(np.degrees(layout.theta[j]) - 90.0) <= SEAM_ARC / 2]
+    if {grid(j) for j in loose} & set(fz.suspension_grids(layout)):
+        raise ValueError(f"the loose seam at station {station} meets a suspension grid")
+    new = {grid(j): fz.JOINT_SKIN + 500_000 + j + 1 for j in loose}
+    yz = fz.RADIUS * np.stack([np.cos(layout.theta), np.sin(layout.theta)], axis=1)
+    f = lambda v: repr(float(v))  # noqa: E731
+    lines = []
+    for line in text.splitlines():
+        card = line.split(",")
+        if card[0] == "CBAR" and (int(card[1]) - fz.FRAMES) // 1000 == station:
+            card[3:5] = [str(new.get(int(g), g)) for g in card[3:5]]
+            line = ",".join(card)
+        lines.append(line)
+    for k, j in enumerate(loose):
+        share = 0.5 * sum(np.linalg.norm(yz[(j + d) % layout.nc] - yz[j]) for d in (-1, 1))
+        lines += [f"GRID,{new[grid(j)]},,{f(layout.x[station])},{f(yz[j, 0])},{f(yz[j, 1])}",
+                  f"PBUSH,{9_990_001 + k},K," + ",".join([f(SEAM_K * share)] * 3 + ["0."] * 3),
+                  f"CBUSH,{fz.BUSHES + 90_001 + k},{9_990_001 + k},{grid(j)},{new[grid(j)]}"]
+    return "\n".join(lines) + "\n", tuple(grid(j) for j in loose)
+
+
+def barrel_case(n_dof: int = 33_000, hidden: str = "grid", control: bool = False):
     """The barrel (``benchmarks.fuselage``, ``n_dof``) and its simulated test (:func:`run_barrel`):
-    (model, test, the payload's floor grid, its centre (m)); ``control``: the test of the
-    model itself."""
+    (model, test, the hidden effect's grids, its centre (m)); ``hidden``: the payload's
+    form (:func:`payload_cards`; its floor grid) or ``seam`` (:func:`loose_seam`; the loose
+    grids); ``control``: the test of the model itself."""
     from benchmarks import fuselage
     from identification import Sensors
     from updating import Noise, simulate_test
@@ -177,31 +217,54 @@ def barrel_case(n_dof: int = 33_000, payload: str = "grid", control: bool = Fals
     model = jaxfem.build_model(read_bdf_text(text))
     ids, xyz = np.asarray(model.node_ids), np.asarray(model.xyz)
     floor = ids[(ids >= fuselage.FLOOR) & (ids < fuselage.JOINT_SKIN)]
-    target = int(floor[np.argmin(np.linalg.norm(xyz[model.node_index(floor)] - [0.3 * xyz[:, 0].max(), 0.3, 0], axis=1))])
-    cards, centre = payload_cards(model, target, payload)
-    truth = model if control else jaxfem.build_model(read_bdf_text(text + cards))
+    if hidden == "seam":
+        truth_text, grids = loose_seam(text, n_dof)
+        centre = xyz[model.node_index(list(grids))].mean(axis=0)
+    else:
+        target = int(floor[np.argmin(np.linalg.norm(xyz[model.node_index(floor)] - [0.3 * xyz[:, 0].max(), 0.3, 0],
+                                                    axis=1))])
+        cards, centre = payload_cards(model, target, hidden)
+        truth_text, grids = text + cards, (target,)
+    truth = model if control else jaxfem.build_model(read_bdf_text(truth_text))
     rng = np.random.default_rng(0)
     skin = np.sort(rng.choice(ids[(ids >= fuselage.SKIN) & (ids < fuselage.FLOOR)], 100, replace=False))
     on_floor = np.sort(rng.choice(floor, 20, replace=False))
     sensors = Sensors.from_components(np.concatenate([np.repeat(skin, 2), on_floor]),
                                       np.concatenate([np.tile([2, 3], len(skin)), np.full(len(on_floor), 3)]))
     test = simulate_test(truth, sensors, 20, Noise(relative=0.01, frequency=0.002), jax.random.key(0), solver="sparse")
-    return model, test, target, centre
+    return model, test, grids, centre
 
 
-def run_barrel(control: bool = False, n_dof: int = 33_000, eigensolver: str = "auto", payload: str = "grid") -> dict:
+def _seam_found(model, top: dict, grids: tuple[int, ...]) -> bool:
+    """A seam of the frames ranked first, centred within one grid of the loose stretch's
+    centre and as long within one step of the ladder (:data:`~updating._effects.SEAM_LENGTHS`)."""
+    from benchmarks import fuselage
+    from updating._effects import SEAM_LENGTHS
+
+    if top["kind"] != "seam" or top["pids"][1] != fuselage.PID_FRAME:
+        return False
+    xyz = np.asarray(model.xyz)
+    pitch = float(np.linalg.norm(np.diff(xyz[model.node_index(list(grids[:2]))], axis=0)))
+    off = np.linalg.norm(xyz[model.node_index(top["nodes"])].mean(axis=0) - xyz[model.node_index(list(grids))].mean(axis=0))
+    rung = lambda n: int(np.argmin(np.abs(np.log(np.asarray(SEAM_LENGTHS) / n))))  # noqa: E731
+    return off <= pitch * (1 + 1e-9) and abs(rung(len(top["nodes"])) - rung(len(grids))) <= 1
+
+
+def run_barrel(control: bool = False, n_dof: int = 33_000, eigensolver: str = "auto", hidden: str = "grid") -> dict:
     """The EC 135-size barrel (``benchmarks.fuselage``) lacking a payload of
-    :data:`BARREL_MASS` kg on its floor (:func:`payload_cards`: ``grid``, ``rbe3`` or ``box``; the
-    truth: the same mesh with those cards, read from its own text), or its control; 20
-    modes (6 suspension, 14 elastic) in y and z at 100 skin grids and in z at 20 floor
-    grids, 0.1 % on frequencies and 1 % on shape components (:func:`barrel_case`); its row.
-    ``eigensolver``: the diagnosis' (``auto``: sparse at 33k DoFs, which leaves the
-    frequency laws out). Right: a mass ranked first centred within half a frame pitch of
-    the payload."""
+    :data:`BARREL_MASS` kg on its floor (:func:`payload_cards`: ``hidden`` = ``grid``,
+    ``rbe3`` or ``box``; the truth: the same mesh with those cards, read from its own
+    text), or with a loose frame-to-skin seam (``seam``, :func:`loose_seam`), or its
+    control; 20 modes (6 suspension, 14 elastic) in y and z at 100 skin grids and in z at
+    20 floor grids, 0.1 % on frequencies and 1 % on shape components (:func:`barrel_case`);
+    its row. ``eigensolver``: the diagnosis' (``auto``: sparse at 33k DoFs, which leaves
+    the frequency laws out). Right: a mass ranked first centred within half a frame pitch
+    of the payload; a seam of the frames within one grid and one ladder step of the loose
+    stretch (:func:`_seam_found`)."""
     from benchmarks import fuselage
     from updating import DiagnoseOptions
 
-    model, test, target, centre = barrel_case(n_dof, payload, control)
+    model, test, grids, centre = barrel_case(n_dof, hidden, control)
     xyz = np.asarray(model.xyz)
     start = time.perf_counter()
     options = DiagnoseOptions(noise_freq=0.001, noise_shape=0.01, eigensolver=eigensolver)
@@ -209,23 +272,27 @@ def run_barrel(control: bool = False, n_dof: int = 33_000, eigensolver: str = "a
     seconds = time.perf_counter() - start
     top = report["effects"][0] if report["outcome"] == "effect" else None
     off = None
-    if top and top["kind"] in ("added_mass", "payload", "distributed_mass"):
+    if top and top["kind"] in ("added_mass", "payload", "distributed_mass", "seam"):
         off = float(np.linalg.norm(xyz[model.node_index(top["nodes"])].mean(axis=0) - centre))
-    right = (report["outcome"] != "effect") if control else (off is not None and off <= fuselage.FRAME_PITCH / 2)
-    hidden = "none" if control else f"{BARREL_MASS:.0f} kg " + {
-        "grid": "at floor grid", "rbe3": "on an RBE3 at floor grid", "box": "box on an RBE3 at floor grid"}[payload] + f" {target}"
-    return _row("barrel control" if control else f"barrel missing payload ({payload})", hidden, model, test, report,
-                seconds, right, centre_off_m=off)
+    if control:
+        right = report["outcome"] != "effect"
+    elif hidden == "seam":
+        right = top is not None and _seam_found(model, top, grids)
+    else:
+        right = off is not None and top["kind"] != "seam" and off <= fuselage.FRAME_PITCH / 2
+    where = f"{grids[0]}–{grids[-1]}" if hidden == "seam" else str(grids[0])
+    return _row("barrel control" if control else f"barrel {hidden}", "none" if control else f"{HIDDEN[hidden]} {where}",
+                model, test, report, seconds, right, centre_off_m=off)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", nargs="*", default=[c.name for c in CASES])
     parser.add_argument("--panel", action="store_true", help="also the CFRP panel's delamination and its control")
-    parser.add_argument("--barrel", action="store_true", help="also the 33k-DoF barrel's missing payload and its control")
-    parser.add_argument("--payload", choices=("grid", "rbe3", "box"), default="grid",
-                        help="the barrel's payload: a CONM2 at a grid, on an RBE3 over a shell, or a box there "
-                             "(payload_cards)")
+    parser.add_argument("--barrel", action="store_true", help="also the 33k-DoF barrel's hidden effect and its control")
+    parser.add_argument("--hidden", choices=tuple(HIDDEN), nargs="+", default=["grid"],
+                        help="the barrel's hidden effects: a payload as a CONM2 at a grid, on an RBE3 over a shell, "
+                             "or a box there (payload_cards), a loose frame-to-skin seam (loose_seam)")
     parser.add_argument("--barrel-dof", type=int, default=33_000, help="the barrel's size (DoFs)")
     parser.add_argument("--ray", help="also the --cases with their candidate fits on Ray (local: 2 workers here)")
     parser.add_argument("--json", help="write the rows as JSON")
@@ -240,8 +307,8 @@ def main() -> None:
     if args.panel:
         runs += [run_panel, lambda: run_panel(control=True)]
     if args.barrel:
-        runs += [lambda: run_barrel(n_dof=args.barrel_dof, payload=args.payload),
-                 lambda: run_barrel(control=True, n_dof=args.barrel_dof)]
+        runs += [lambda hidden=hidden: run_barrel(n_dof=args.barrel_dof, hidden=hidden) for hidden in args.hidden]
+        runs += [lambda: run_barrel(control=True, n_dof=args.barrel_dof)]
     for run in runs:
         r = run()
         rows.append(r)

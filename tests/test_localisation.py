@@ -204,7 +204,7 @@ def test_standardised_residual_forces_find_a_payload_on_an_rbe3():
     sensors on stiff skin and the suspension modes, whose inertia forces are small)."""
     from benchmarks.perf_diagnose import barrel_case
 
-    model, test, target, centre = barrel_case(2_500, "rbe3")
+    model, test, _, centre = barrel_case(2_500, "rbe3")
     C, _ = observation_matrix(model, test.sensors)
     lam = (2 * np.pi * np.asarray(test.frequencies_hz)) ** 2
     _, grids = residual_forces(model, lam, np.asarray(test.shapes), C)

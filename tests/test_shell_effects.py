@@ -188,3 +188,51 @@ def test_the_joints_and_seams_of_a_region_release_each_grid_once():
     assert len(stiffened) == len(structures) >= 2
     f1 = np.asarray(jaxfem.frequencies_hz(jaxfem.modes(aug, 26, solver="sparse")[0]))
     assert np.max(np.abs(f1[6:] / f0[6:] - 1)) < 1e-3
+
+
+def test_a_seams_line_is_released_once_and_its_runs_are_masks_on_it():
+    """A frame-to-skin seam is released along its whole line in the shared model
+    (:func:`updating._candidates.augment`), held stiff; a run of the line softened through its
+    own grids' springs (a mask) gives the frequencies of the nominal model with only that
+    run released (Seam.apply), and the runs next to it are one grid along the line either
+    way and the next lengths of the ladder about the same centre."""
+    from dataclasses import replace
+
+    import equinox as eqx
+
+    from benchmarks import fuselage
+    from updating._candidates import STIFF, augment, structural_candidate
+    from updating._effects import SEAM_GRIDS, SEAM_LENGTHS, Seam
+
+    model = jaxfem.build_model(read_bdf_text(fuselage.barrel_bdf(2500)))
+    seam = next(s for s in Seam.candidates(model) if s.pids[1] == 201 and len(s.nodes) == SEAM_GRIDS
+                and s.nodes[0] != s.line(model)[0])
+    line = seam.line(model)
+    start = line.index(seam.nodes[0])
+    assert line[start:start + SEAM_GRIDS] == seam.nodes and len(line) > SEAM_LENGTHS[2]
+    near = [n.nodes for n in seam.neighbours(line)]
+    assert near[:6] == [line[start - 1:start + 4], line[start + 1:start + 6],  # one grid along
+                        line[start - 1:start + 5], line[start:start + 6],  # an end out
+                        line[start + 1:start + 5], line[start:start + 4]]  # an end in
+    assert [len(n) for n in near[6:]] == [3, 8] and all(seam.nodes[2] in n for n in near[6:])  # the ladder
+
+    f0 = np.asarray(jaxfem.frequencies_hz(jaxfem.modes(model, 20, solver="sparse")[0]))
+    aug, _, (released,) = augment(model, [], [seam], f0[6:])
+    assert released.line == line and set(released.springs) == set(line)
+    assert all(len(t) == len(r) == 1 for t, r in released.springs.values())
+    assert released.trans == tuple(released.springs[g][0][0] for g in seam.nodes)
+    assert released.rot == tuple(released.springs[g][1][0] for g in seam.nodes)
+    soft = np.log([1e-5, 1e-5])
+    run = released.seam(released.effect.run(line, start + 1, 8))
+    c = structural_candidate(aug, run, theta0=soft)
+    assert c.scan is None and c.released.line == line and c.reference.nodes == line[start + 1:start + 9]
+    scale = {**{e: np.exp(soft[0]) for e in run.trans}, **{e: np.exp(soft[1]) for e in run.rot}}
+    b = aug.bushes
+    masked = eqx.tree_at(lambda m: m.bushes.k_scale, aug,
+                         jnp.asarray([scale.get(int(e), 1.0) for e in b.ids]) * b.k_scale)
+    alone = c.reference.updated(soft).apply(model)
+    f_masked, f_alone = (np.asarray(jaxfem.frequencies_hz(jaxfem.modes(m, 20, solver="sparse")[0]))[6:]
+                         for m in (masked, alone))
+    assert np.max(np.abs(f_alone / f0[6:] - 1)) > 0.002  # the run released and softened moves the modes (0.4 %)
+    np.testing.assert_allclose(f_masked, f_alone, rtol=2e-4)  # the rest of the line held STIFF × reference
+    assert c.reference.k_trans == pytest.approx(replace(seam).at_reference(model, f0[6:]).k_trans * STIFF, rel=1e-12)

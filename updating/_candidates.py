@@ -13,7 +13,7 @@ frequencies within 1e-4) — which the fit then softens.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import equinox as eqx
 import jax
@@ -64,6 +64,7 @@ class Candidate:
     result: dict = field(default_factory=dict)
     effect: AbstractEffect | None = None
     solver: object = None  # its reduced eigensolver (updating._reduced), made when first fitted
+    released: Released | None = None  # a released joint, seam or support: its springs in the shared model
 
     def __post_init__(self):
         if self.effect is None:
@@ -220,7 +221,8 @@ def localised_grids(model: Model, screen: Screen, node_scores: dict[int, float],
 def region_structures(model: Model, region: list[int], node_score: dict, kinds, n: int) -> list[AbstractEffect]:
     """Joints (RBE2 groups, grids shared by two groups), seams and supports with a grid in the
     localised ``region`` or scoring high there, best first, at most ``n``; a joint or seam
-    sharing a grid with a better one is left out (:func:`augment` releases them all at once)."""
+    sharing a grid with a better one (a seam: its whole line, which :func:`augment`
+    releases) is left out (:func:`augment` releases them all at once)."""
     effects = [e for kind in (Joint, Seam, BoundarySpring) if kind.kind in kinds for e in kind.candidates(model)]
     inside, dep = set(region), masters(model)
     score = {e: (any(k in inside or dep.get(k) in inside for k in e.nodes), max(node_score.get(k, 0.0) for k in e.nodes))
@@ -230,11 +232,37 @@ def region_structures(model: Model, region: list[int], node_score: dict, kinds, 
         if len(chosen) == n:
             break
         if e.kind != BoundarySpring.kind:  # a grid released twice would be held by the second release only
-            if released & set(e.nodes):
+            span = set(e.line(model) if isinstance(e, Seam) else e.nodes)
+            if released & span:
                 continue
-            released |= set(e.nodes)
+            released |= span
         chosen.append(e)
     return chosen
+
+
+@dataclass(frozen=True, eq=False)
+class Released:
+    """A joint, seam or support released in the shared model (:func:`augment`): the effect
+    held :data:`STIFF` times stiffer than its reference, the springs on its translations
+    and on its rotations (``trans``, ``rot``; one set if it has one factor); a seam's
+    whole ``line`` is released, ``springs`` at each of its grids, so that seams along it
+    are masks on the same model (:meth:`seam`)."""
+
+    effect: AbstractEffect
+    trans: tuple[int, ...]
+    rot: tuple[int, ...]
+    line: tuple[int, ...] = ()
+    springs: dict = field(default_factory=dict)
+
+    def ids(self) -> list[int]:
+        """Every spring released with it."""
+        return [e for pair in [(self.trans, self.rot), *self.springs.values()] for ids in pair for e in ids]
+
+    def seam(self, seam: Seam) -> Released:
+        """A seam on this one's line, held as stiff (its grids' springs)."""
+        grids = [self.springs[g] for g in seam.nodes]
+        return Released(seam, tuple(e for t, _ in grids for e in t), tuple(e for _, r in grids for e in r),
+                        self.line, self.springs)
 
 
 def region_shells(model: Model, nodes: list[int]) -> list[tuple[int, tuple[int, ...]]]:
@@ -254,14 +282,19 @@ def augment(model: Model, nodes: list[int], structures: list[AbstractEffect], f_
     a dormant :class:`Payload` on each shell at those grids, and each joint or support of
     ``structures`` released and held :data:`STIFF` times stiffer than its reference.
     Returns the model, (reference effect, dormant element ids) per grid or shell and kind,
-    and (stiffened effect, its element ids) per structure."""
+    and the :class:`Released` structures."""
     nominal = model
     stiffened = []
     for effect in structures:
         ref = effect.at_reference(nominal, f_e)
         stiff = ref.updated(np.full(len(ref.prior_sd), np.log(STIFF)))
+        if isinstance(stiff, Seam):  # its line at the seam's values per unit length
+            line = stiff.line(nominal)
+            before, model = model, replace(stiff, nodes=line).add_to(model)
+            stiffened.append(Released(stiff, (), (), line, replace(stiff, nodes=line).springs(before, model)).seam(stiff))
+            continue
         before, model = model, stiff.add_to(model)
-        stiffened.append((stiff, stiff._halves(before, model) if stiff.split else (stiff._new(before, model), ())))
+        stiffened.append(Released(stiff, *(stiff._halves(before, model) if stiff.split else (stiff._new(before, model), ()))))
     model = edit.refresh(model)  # once for all structures
     dormant = []
     for node in nodes:
@@ -386,19 +419,30 @@ def pool(model: Model, cands: list[Candidate], dormant, stiffened) -> tuple[int,
     patches = [c.reference.elements(model) for c in cands if isinstance(c.reference, AbstractPatch)]
     shells = np.unique(np.concatenate(patches)) if patches else np.zeros(0, np.int64)
     ring = list(elements_at(model, element_grids(model, shells))) if len(shells) else []
-    added = [e for _, ids in dormant for e in ids] + [e for _, pair in stiffened for ids in pair for e in ids]
+    added = [e for _, ids in dormant for e in ids] + [e for r in stiffened for e in r.ids()]
     return tuple(sorted({int(e) for e in np.concatenate([shells, ring, added])}))
 
 
-def structural_candidates(aug: Model, stiffened) -> list[Candidate]:
-    """The released joints and supports of ``aug``: one log-factor on each one's springs,
-    from :data:`STIFF` × its reference (θ = 0) down; prior and scan about the reference."""
-    out, shift = [], -np.log(STIFF)
-    for stiff, (ids, ids_2) in stiffened:
-        out.append(Candidate(stiff, extension(aug, k_log=ids, k_log_2=ids_2),
-                             scan=tuple(tuple(shift + np.atleast_1d(t)) for t in stiff.scan),
-                             prior_mean=np.full(len(stiff.prior_sd), shift)))
-    return out
+def structural_candidates(aug: Model, stiffened: list[Released]) -> list[Candidate]:
+    """The released joints, seams and supports of ``aug`` (:func:`structural_candidate`)."""
+    return [structural_candidate(aug, r) for r in stiffened]
+
+
+def structural_candidate(aug: Model, released: Released, theta0=None) -> Candidate:
+    """A released joint, seam or support of ``aug``: one log-factor on its springs (two: on
+    translations and on rotations), from :data:`STIFF` × its reference (θ = 0) down;
+    prior and scan about the reference (``theta0`` given: that start, no scan)."""
+    stiff, shift = released.effect, -np.log(STIFF)
+    scan = tuple(tuple(shift + np.atleast_1d(t)) for t in stiff.scan) if theta0 is None else None
+    return Candidate(stiff, extension(aug, k_log=released.trans, k_log_2=released.rot), scan=scan,
+                     theta0=theta0, prior_mean=np.full(len(stiff.prior_sd), shift), released=released)
+
+
+def seam_neighbours(aug: Model, c: Candidate) -> list[Candidate]:
+    """The seams next to a fitted one on its released line (:meth:`~updating._effects.Seam.neighbours`),
+    to start at its fitted values."""
+    r, theta = c.released, c.result["theta"]
+    return [structural_candidate(aug, r.seam(s), theta[len(theta) - len(c.theta0):]) for s in c.reference.neighbours(r.line)]
 
 
 def shortlist(cands: list[Candidate], best: int, per_kind: int, kinds, within: float) -> list[Candidate]:

@@ -63,13 +63,14 @@ from ._candidates import (
     patch_neighbours,
     pool,
     region_structures,
+    seam_neighbours,
     shell_grids,
     shortlist,
     structural_candidates,
     with_masks,
 )
 from ._correlation import comac, pair_modes
-from ._effects import KINDS, AbstractEffect, AbstractPatch
+from ._effects import KINDS, AbstractEffect, AbstractPatch, Seam
 from ._eigensolvers import AbstractEigensolver, Direct
 from ._engine import Settings
 from ._evidence import (
@@ -98,7 +99,7 @@ from ._topology import total_mass
 
 
 SHAPE_SIGNAL = 2.0  # shape χ² per row at the nominal model below which residual forces do not define the region
-CLIMB_SHARE = 0.5  # a patch kind is refined when it takes this share of the best candidate's cost reduction
+CLIMB_SHARE = 0.5  # a patch kind or a seam is refined when it takes this share of the best candidate's cost reduction
 
 
 @dataclass(frozen=True)
@@ -216,7 +217,8 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     mass = total_mass(model)
     aug, dormant, stiffened = augment(model, nodes, structures, f_e)
     problem = build_problem(aug, test, pset)
-    say(f"region: {len(nodes)} grids, {len(structures)} joints or supports; one model of {aug.n_dof} DoFs")
+    say(f"region: {len(nodes)} grids, {len(structures)} joints, seams or supports"
+        f"{''.join(f'; {e.kind} at {e.where()}' for e in structures)}; one model of {aug.n_dof} DoFs")
 
     # -- baseline: the engineer's parameters fitted on all modes and on each fold
     say(f"baseline fit ({n_b} parameters, {len(masks) - 1}-fold cross-validation over {ne} modes)")
@@ -298,7 +300,7 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     # -- the place refined: an added mass or spring moves to a neighbouring grid while that fits better
     for c0, c1 in _refine_places(fitted, solver, fits, problem, aug, cands, short, base, theta_b):
         say(f"  {c1.reference.kind} moved from grid {c0.reference.nodes[0]} to {c1.reference.nodes[0]} ({elapsed()})")
-    for c0, c1 in _refine_patches(fitted, model, aug, short, base, f_e):
+    for c0, c1 in _refine_patches(fitted, model, aug, short, base, f_e) + _refine_seams(fitted, aug, short, base):
         say(f"  {c1.reference.kind} moved from {c0.reference.where()} to {c1.reference.where()} ({elapsed()})")
 
     # -- evidence; the most probable candidates fitted again on the full model and cross-validated
@@ -443,8 +445,7 @@ def _refine_patches(fitted, model: Model, aug: Model, short: list[Candidate], ba
             out.append(done[key(patch)])
         return out
 
-    best = min((c.result["cost"] for c in short if np.isfinite(c.result["cost"])), default=base["cost"])
-    bar = base["cost"] - CLIMB_SHARE * (base["cost"] - best)
+    bar = _climb_bar(short, base)
     best_of: dict = {}
     for c in done.values():
         k = key(c.reference)[:2]
@@ -452,6 +453,38 @@ def _refine_patches(fitted, model: Model, aug: Model, short: list[Candidate], ba
             best_of[k] = c
     return [m for best in sorted(best_of.values(), key=lambda c: c.result["cost"])[:2]
             for m in _climb(best, fitted_neighbours)]
+
+
+def _refine_seams(fitted, aug: Model, short: list[Candidate], base: dict) -> list[tuple[Candidate, Candidate]]:
+    """Hill-climb of the best fitted seam that takes at least half the cost reduction of
+    the best candidate (as a patch, :func:`_refine_patches`): fitted one grid along its
+    released line either way and with the next length of the ladder up and down
+    (:func:`~updating._candidates.seam_neighbours`), moving while one fits better. Fits join ``short``."""
+    done = {(c.reference.pids, c.reference.nodes): c for c in short
+            if c.reference.kind == Seam.kind and c.released is not None}
+
+    def fitted_neighbours(best: Candidate) -> list[Candidate]:
+        out = []
+        near = seam_neighbours(aug, best)
+        for i, c in enumerate(near, 1):
+            key = c.reference.pids, c.reference.nodes
+            if key not in done:
+                c.result = fitted(c, c.theta0, i, len(near))
+                done[key] = c
+                short.append(c)
+            out.append(done[key])
+        return out
+
+    bar = _climb_bar(short, base)
+    best = min((c for c in done.values() if c.result["cost"] < bar), key=lambda c: c.result["cost"], default=None)
+    return _climb(best, fitted_neighbours) if best is not None else []
+
+
+def _climb_bar(short: list[Candidate], base: dict) -> float:
+    """The cost a candidate must fit below to be refined: :data:`CLIMB_SHARE` of the best
+    candidate's cost reduction."""
+    best = min((c.result["cost"] for c in short if np.isfinite(c.result["cost"])), default=base["cost"])
+    return base["cost"] - CLIMB_SHARE * (base["cost"] - best)
 
 
 # ---------------------------------------------------------------------------------------

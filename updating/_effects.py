@@ -53,6 +53,7 @@ from ._topology import (
 )
 
 SCAN = (0.0, -1.5, -3.0, -4.5, -6.0, 1.5)  # log-factors tried before fitting a joint, support or mass
+SCAN_SEAM = (0.0, -2.0, -4.0, -6.0, -8.0, -10.0, -12.0)  # a seam's: from rigid (reference 100 EA/L) to a detached frame
 SCAN_LAW = tuple((0.0, np.log1p(a)) for a in (-0.3, 0.0, 0.15, 0.3, 0.8, 1.5))  # (E0 factor, a − a₀) of a frequency law
 
 
@@ -582,6 +583,7 @@ class Joint(AbstractAddedElements):
 
 
 SEAM_GRIDS = 5  # grids per seam candidate: a seam line is offered in runs of this many
+SEAM_LENGTHS = (3, 5, 8, 13, 21)  # seam ladder, in grids: a fitted seam is refined along its line and in length
 
 
 class Seam(AbstractAddedElements):
@@ -600,7 +602,7 @@ class Seam(AbstractAddedElements):
     kind = "seam"
     value_names = ("k_trans", "k_rot")
     scales = "k"
-    scan = tuple((t, t) for t in SCAN)
+    scan = tuple((t, t) for t in SCAN_SEAM)
     prior_sd = (3.0, 3.0)
 
     def __check_init__(self):
@@ -613,24 +615,43 @@ class Seam(AbstractAddedElements):
     def candidates(cls, model: Model) -> list[Seam]:
         """Every line of grids a beam group shares with a shell group, in runs of
         :data:`SEAM_GRIDS` along the beams."""
-        out = []
-        shells = [(model.quads.pids, model.quads.nodes), (model.trias.pids, model.trias.nodes)]
-        shell_rows = {int(p): set() for pids, _ in shells for p in pids}
-        for pids, nodes in shells:
-            for p, row in zip(pids, nodes):
-                shell_rows[int(p)].update(int(r) for r in row if r >= 0)
-        b = model.beams
-        for bp in sorted({int(p) for p in b.pids}):
-            ends = np.asarray(b.nodes)[np.asarray(b.pids) == bp][:, :2]
-            for sp, rows in sorted(shell_rows.items()):
-                edges = [(int(i), int(j)) for i, j in ends if int(i) in rows and int(j) in rows]
-                for line in _chains(edges):
-                    ids = [int(model.node_ids[r]) for r in line]
-                    for k in range(0, len(ids), SEAM_GRIDS):
-                        run = tuple(ids[k:k + SEAM_GRIDS])
-                        out.append(cls(nodes=run, pids=(sp, bp),
-                                       label=f"seam of pid {bp} on pid {sp}, grids {run[0]}–{run[-1]}"))
-        return out
+        return [cls(pids=pids, nodes=line[:1]).run(line, k, SEAM_GRIDS)
+                for pids, lines in _seam_lines(model).items() for line in lines
+                for k in range(0, len(line), SEAM_GRIDS)]
+
+    def line(self, model: Model) -> tuple[int, ...]:
+        """The whole line this seam lies on (grids in order along it)."""
+        for line in _seam_lines(model).get(tuple(self.pids), []):
+            if self.nodes[0] in line:
+                return line
+        raise ValueError(f"seam at grids {list(self.nodes)}: no line of pid {self.pids[1]} on pid {self.pids[0]} "
+                         "runs through them")
+
+    def run(self, line: tuple[int, ...], start: int, n: int) -> Seam:
+        """This seam (its values) on ``n`` grids of ``line`` from index ``start``."""
+        nodes = tuple(line[start:start + n])
+        return replace(self, nodes=nodes,
+                       label=f"grids {nodes[0]}–{nodes[-1]} of pid {self.pids[1]} on pid {self.pids[0]}")
+
+    def neighbours(self, line: tuple[int, ...]) -> list[Seam]:
+        """The seams next to this one on its ``line``: one grid along it either way, each
+        end one grid out or in, and the next length of :data:`SEAM_LENGTHS` up and down
+        about the same centre."""
+        start, n = line.index(self.nodes[0]), len(self.nodes)
+        runs = [(start - 1, n), (start + 1, n), (start - 1, n + 1), (start, n + 1), (start + 1, n - 1), (start, n - 1)]
+        step = int(np.argmin(np.abs(np.asarray(SEAM_LENGTHS) - n)))
+        runs += [(start + n // 2 - SEAM_LENGTHS[i] // 2, SEAM_LENGTHS[i]) for i in (step - 1, step + 1)
+                 if 0 <= i < len(SEAM_LENGTHS)]
+        runs = [(int(np.clip(s, 0, len(line) - m)), m) for s, m in runs if 2 <= m <= len(line)]
+        return [self.run(line, s, m) for s, m in dict.fromkeys(runs) if (s, m) != (start, n)]
+
+    def springs(self, before: Model, after: Model) -> dict[int, tuple[tuple[int, ...], tuple[int, ...]]]:
+        """The springs :meth:`add_to` added (``before`` → ``after``) at each grid:
+        (on translations, on rotations)."""
+        trans, rot = self._halves(before, after)
+        b = after.bushes
+        at = {int(e): {int(after.node_ids[r]) for r in row} for e, row in zip(b.ids, np.asarray(b.nodes))}
+        return {g: (tuple(e for e in trans if g in at[e]), tuple(e for e in rot if g in at[e])) for g in self.nodes}
 
     def shares(self, model: Model) -> np.ndarray:
         """Each grid's length of seam (m): half the distance to each neighbour on the line."""
@@ -663,8 +684,27 @@ class Seam(AbstractAddedElements):
 
     def advice(self, sd) -> str:
         s = np.broadcast_to(np.asarray(sd, float), (2,))
-        return (f"make the {self.where()} flexible: k_rot = {spread(self.k_rot, s[1], 'N·m/rad per m')}, "
+        return (f"make the seam at {self.where()} flexible: k_rot = {spread(self.k_rot, s[1], 'N·m/rad per m')}, "
                 f"k_trans = {spread(self.k_trans, s[0], 'N/m per m')}")
+
+
+def _seam_lines(model: Model) -> dict[tuple[int, int], list[tuple[int, ...]]]:
+    """The lines of grids each beam group shares with each shell group, by (shell pid,
+    beam pid): each line's grids in order along it (:func:`_chains`)."""
+    shells = [(model.quads.pids, model.quads.nodes), (model.trias.pids, model.trias.nodes)]
+    shell_rows = {int(p): set() for pids, _ in shells for p in pids}
+    for pids, nodes in shells:
+        for p, row in zip(pids, nodes):
+            shell_rows[int(p)].update(int(r) for r in row if r >= 0)
+    b, out = model.beams, {}
+    for bp in sorted({int(p) for p in b.pids}):
+        ends = np.asarray(b.nodes)[np.asarray(b.pids) == bp][:, :2]
+        for sp, rows in sorted(shell_rows.items()):
+            edges = [(int(i), int(j)) for i, j in ends if int(i) in rows and int(j) in rows]
+            lines = [tuple(int(model.node_ids[r]) for r in line) for line in _chains(edges)]
+            if lines:
+                out[sp, bp] = lines
+    return out
 
 
 def _chains(edges: list[tuple[int, int]]) -> list[list[int]]:
