@@ -5,7 +5,8 @@ shortlisted for a full fit.
 
 All candidates share one model, so that their fits share one compiled solver: the
 nominal one plus dormant elements (scale 0) at every grid of the localised region (added
-masses, springs to ground), and its rigid connections and supports in that region
+masses, springs to ground), and its rigid connections (a seam along its whole line, so
+that the runs of the line are masks on one model) and supports in that region
 released and held by springs :data:`STIFF` times stiffer than their reference — as
 rigid as the original to well below measurement noise (GARTEUR, all ten joints:
 frequencies within 1e-4) — which the fit then softens.
@@ -279,8 +280,9 @@ def region_shells(model: Model, nodes: list[int]) -> list[tuple[int, tuple[int, 
 def augment(model: Model, nodes: list[int], structures: list[AbstractEffect], f_e):
     """The model plus a dormant (scale 0) point mass and ground springs at each grid of
     ``nodes``, at the reference values of :class:`AddedMass` and :class:`BoundarySpring`,
-    a dormant :class:`Payload` on each shell at those grids, and each joint or support of
-    ``structures`` released and held :data:`STIFF` times stiffer than its reference.
+    a dormant :class:`Payload` on each shell at those grids, and each joint, seam (its
+    whole line) or support of ``structures`` released and held :data:`STIFF` times
+    stiffer than its reference.
     Returns the model, (reference effect, dormant element ids) per grid or shell and kind,
     and the :class:`Released` structures."""
     nominal = model
@@ -288,10 +290,10 @@ def augment(model: Model, nodes: list[int], structures: list[AbstractEffect], f_
     for effect in structures:
         ref = effect.at_reference(nominal, f_e)
         stiff = ref.updated(np.full(len(ref.prior_sd), np.log(STIFF)))
-        if isinstance(stiff, Seam):  # its line at the seam's values per unit length
-            line = stiff.line(nominal)
-            before, model = model, replace(stiff, nodes=line).add_to(model)
-            stiffened.append(Released(stiff, (), (), line, replace(stiff, nodes=line).springs(before, model)).seam(stiff))
+        if isinstance(stiff, Seam):  # its whole line, at the seam's values per unit length
+            line = replace(stiff, nodes=stiff.line(nominal))
+            before, model = model, line.add_to(model)
+            stiffened.append(Released(stiff, (), (), line.nodes, line.springs(before, model)).seam(stiff))
             continue
         before, model = model, stiff.add_to(model)
         stiffened.append(Released(stiff, *(stiff._halves(before, model) if stiff.split else (stiff._new(before, model), ()))))
