@@ -55,7 +55,7 @@ def joint(case):
     bases = Bases(with_extension(problem, none), base["theta"])
     c = next(c for c in structural_candidates(aug, stiffened) if c.reference.nodes == (NODE,))
     springs = next(r.ids() for r in stiffened if r.effect.nodes == (NODE,))
-    return problem, fits, c, bases.reduced(problem, c.ext, np.zeros(2)), (bases, springs)
+    return problem, fits, c, bases.reduced(problem, c.ext, np.zeros(2), held=True), (bases, springs)
 
 
 def test_released_joint_eigenvalues_and_derivative(joint):
@@ -90,9 +90,9 @@ def test_pool_assembles_only_what_changes(joint):
     beam = int(np.asarray(problem.structure.value.beams.ids)[0])
     bases.pool = tuple(sorted(springs + [beam]))
     try:
-        pooled = bases.reduced(problem, c.ext, np.zeros(2))
+        pooled = bases.reduced(problem, c.ext, np.zeros(2), held=True)
         bases.pool = (beam,) + tuple(sorted(springs))[1:]
-        missing = bases.reduced(problem, c.ext, np.zeros(2))
+        missing = bases.reduced(problem, c.ext, np.zeros(2), held=True)
     finally:
         bases.pool = None
     assert pooled.pool == tuple(sorted(springs + [beam])) and missing.pool is None and red.pool is None

@@ -236,7 +236,7 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
         if c is None:
             return bases.reduced(problem, none, np.zeros(1))
         if c.solver is None:
-            c.solver = bases.reduced(problem, c.ext, np.zeros(c.ext.n_params))
+            c.solver = bases.reduced(problem, c.ext, np.zeros(c.ext.n_params), held=c.released is not None)
         return c.solver
 
     cross_validate(fits, problem, none, base, masks, solver(None))

@@ -13,10 +13,12 @@ changed model are sought in the span of
   the change exerts there, ``(K − σM)⁻¹ ∂K e_d`` (and ∂M), and one step of inverse
   iteration on them, ``(K − σM)⁻¹ M (K − σM)⁻¹ ·``. A change ΔK of any size on those
   DoFs changes the static flexibility only in their span (Woodbury), so these hold a
-  joint released or a patch delaminated, not only a small step. (The change loads hold
-  the motion across a connection held stiff: for unit loads alone it is the difference
-  of two nearly equal columns, which the M-orthonormalisation drops, and a seam softened
-  e⁻¹² left the reduced eigenvalues unchanged.) A candidate
+  joint released or a patch delaminated, not only a small step. (The change loads, for
+  a connection held stiff — a released joint, seam or support —, hold the motion across
+  it: for unit loads alone it is the difference of two nearly equal columns, which the
+  M-orthonormalisation drops, and a seam softened e⁻¹² left the reduced eigenvalues
+  unchanged. Other candidates do without them: on the 33k barrel they widened the bases
+  and slowed the diagnosis beyond 10 minutes.) A candidate
   touching more than ``ATTACH_MAX`` DoFs (a whole group) gets the first-order columns.
 
 The basis is M-orthonormalised. The reduced eigenvalues are Rayleigh quotients, so their
@@ -175,10 +177,12 @@ class Bases:
         loads = np.concatenate(cols, axis=1) if cols else np.zeros((unit.shape[0], 0))
         return loads[:, np.abs(loads).max(axis=0, initial=0.0) > 0]
 
-    def reduced(self, problem: Problem, ext, theta_c) -> Reduced:
+    def reduced(self, problem: Problem, ext, theta_c, held: bool = False) -> Reduced:
         """The :class:`Reduced` eigensolver of one candidate (``ext``, its θ at ``theta_c``):
         the baseline's columns and the candidate's (module docstring); it assembles only
-        the :attr:`pool` when that holds every element the parameters change."""
+        the :attr:`pool` when that holds every element the parameters change. ``held``: the
+        candidate softens a connection held stiff (a released joint, seam or support),
+        whose attachment columns get the change loads too (:meth:`_change_loads`)."""
         p = with_extension(problem, ext)
         theta_c = np.atleast_1d(np.asarray(theta_c, float))
         # padded as the fits are (EXTENSION_PARAMS): one compiled function for every kind
@@ -193,7 +197,8 @@ class Bases:
         if len(touched) <= ATTACH_MAX:
             unit = np.zeros((len(self.phi), len(touched)))
             unit[touched, np.arange(len(touched))] = 1.0
-            static = np.asarray(self._solve(np.concatenate([unit, self._change_loads(theta, p, tangents, unit)], axis=1)))
+            loads = np.concatenate([unit, self._change_loads(theta, p, tangents, unit)], axis=1) if held else unit
+            static = np.asarray(self._solve(loads))
             dynamic = np.asarray(self._solve(M @ static))
             own = np.concatenate([static, dynamic], axis=1)
         else:
