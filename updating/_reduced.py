@@ -9,16 +9,16 @@ changed model are sought in the span of
   each parameter's change exerts on the paired modes, ``(K − σM)⁻¹ (∂_i K − λ_j ∂_i M) φ_j``
   (the first-order modal expansion with its static correction, eq. 3.23 with eq. 3.28);
 - along a candidate's parameters (a local change): the static responses to unit loads at
-  every DoF the change touches, ``(K − σM)⁻¹ e_d`` (attachment modes), and to the loads
-  the change exerts there, ``(K − σM)⁻¹ ∂K e_d`` (and ∂M), and one step of inverse
-  iteration on them, ``(K − σM)⁻¹ M (K − σM)⁻¹ ·``. A change ΔK of any size on those
-  DoFs changes the static flexibility only in their span (Woodbury), so these hold a
-  joint released or a patch delaminated, not only a small step. (The change loads, for
-  a connection held stiff — a released joint, seam or support —, hold the motion across
-  it: for unit loads alone it is the difference of two nearly equal columns, which the
-  M-orthonormalisation drops, and a seam softened e⁻¹² left the reduced eigenvalues
-  unchanged. Other candidates do without them: on the 33k barrel they widened the bases
-  and slowed the diagnosis beyond 10 minutes.) A candidate
+  every DoF the change touches, ``(K − σM)⁻¹ e_d`` (attachment modes), and one step of
+  inverse iteration on them, ``(K − σM)⁻¹ M (K − σM)⁻¹ e_d``. A change ΔK of any size
+  on those DoFs changes the static flexibility only in their span (Woodbury), so these
+  hold a joint released or a patch delaminated, not only a small step. Springs that hold
+  a connection stiff (a released joint, seam or support) take the loads their change
+  exerts instead, ``(K − σM)⁻¹ ∂K e_d``, which span the same range ΔK has at any scale
+  (k e^θ): for unit loads the motion across the connection is the difference of two
+  nearly equal columns, which the M-orthonormalisation drops (a seam softened e⁻¹²
+  left the reduced eigenvalues unchanged); both sets together widened the bases and ran
+  the 33k diagnosis past 10 minutes. A candidate
   touching more than ``ATTACH_MAX`` DoFs (a whole group) gets the first-order columns.
 
 The basis is M-orthonormalised. The reduced eigenvalues are Rayleigh quotients, so their
@@ -181,8 +181,9 @@ class Bases:
         """The :class:`Reduced` eigensolver of one candidate (``ext``, its θ at ``theta_c``):
         the baseline's columns and the candidate's (module docstring); it assembles only
         the :attr:`pool` when that holds every element the parameters change. ``held``: the
-        candidate softens a connection held stiff (a released joint, seam or support),
-        whose attachment columns get the change loads too (:meth:`_change_loads`)."""
+        candidate scales springs that hold a connection stiff (a released joint, seam or
+        support): its attachment columns are the responses to its change loads
+        (:meth:`_change_loads`), not to unit loads."""
         p = with_extension(problem, ext)
         theta_c = np.atleast_1d(np.asarray(theta_c, float))
         # padded as the fits are (EXTENSION_PARAMS): one compiled function for every kind
@@ -197,8 +198,7 @@ class Bases:
         if len(touched) <= ATTACH_MAX:
             unit = np.zeros((len(self.phi), len(touched)))
             unit[touched, np.arange(len(touched))] = 1.0
-            loads = np.concatenate([unit, self._change_loads(theta, p, tangents, unit)], axis=1) if held else unit
-            static = np.asarray(self._solve(loads))
+            static = np.asarray(self._solve(self._change_loads(theta, p, tangents, unit) if held else unit))
             dynamic = np.asarray(self._solve(M @ static))
             own = np.concatenate([static, dynamic], axis=1)
         else:
