@@ -223,8 +223,13 @@ def region_structures(model: Model, region: list[int], node_score: dict, kinds, 
     """Joints (RBE2 groups, grids shared by two groups), seams and supports with a grid in the
     localised ``region`` or scoring high there, best first, at most ``n``; a joint or seam
     sharing a grid with a better one (a seam: its whole line, which :func:`augment`
-    releases) is left out (:func:`augment` releases them all at once)."""
+    releases) is left out (:func:`augment` releases them all at once), and so is a joint
+    between a shell and a beam group at a grid of their seam, which a seam walks to
+    (on the 33k barrel such joints took the places of the loose frame's seam)."""
     effects = [e for kind in (Joint, Seam, BoundarySpring) if kind.kind in kinds for e in kind.candidates(model)]
+    on_seams = {(g, frozenset(s.pids)) for s in effects if isinstance(s, Seam) for g in s.nodes}
+    effects = [e for e in effects if not (isinstance(e, Joint) and len(e.nodes) == 1
+                                          and (e.nodes[0], frozenset(e.pids)) in on_seams)]  # a seam of one grid
     inside, dep = set(region), masters(model)
     score = {e: (any(k in inside or dep.get(k) in inside for k in e.nodes), max(node_score.get(k, 0.0) for k in e.nodes))
              for e in effects}
