@@ -48,8 +48,11 @@ verdict and numbers as above (held-out 0.97 → 0.09 %, χ²/row 898.6 → 0.98,
 in **524 s**, under the 10-minute aim; 647 s on the same machine that morning, before
 PARDISO was found once per process, C V formed once per basis and the candidates fitted
 on two threads. The control claims nothing (χ²/row 0.97, held-out 0.10 %) in 568 s and 515 s (two runs).
-Phases: docs/diagnosis.md ("Large models"). The loose seam (``--hidden seam``) has been
-run at 2,500 DoFs only (docs/diagnosis.md); not yet at 33k.
+Phases: docs/diagnosis.md ("Large models"). Once the reduced models could soften the
+released joints and seams (their scans now move), the payload took **563 s**, the same
+verdict and numbers (2026-11-27). The loose seam (``--hidden seam``) has been run at
+2,500 DoFs only (docs/diagnosis.md); at 33k, before shell-to-beam joints on a seam line
+were left to the seam, the loose frame's seam was not offered (stopped).
 """
 
 from __future__ import annotations
