@@ -17,7 +17,7 @@
    the added mass, spring and payloads at the best-localised grid whatever they screen. On
    shells, patches about the region's shell grids (a delamination, a local membrane or
    bending stiffness, distributed mass; radii from a ladder), their centre and radius
-   then refined by hill-climbing.
+   then refined by hill-climbing; a seam likewise walks along its line and in length.
 4. **Ranking by evidence** (:mod:`updating._evidence`): the Laplace approximation of each
    candidate's marginal likelihood under its kind's prior, posterior probabilities over
    the candidates and the baseline; the most probable ones are cross-validated over the
@@ -457,9 +457,9 @@ def _refine_patches(fitted, model: Model, aug: Model, short: list[Candidate], ba
 
 def _refine_seams(fitted, aug: Model, short: list[Candidate], base: dict) -> list[tuple[Candidate, Candidate]]:
     """Hill-climb of the best fitted seam that takes at least half the cost reduction of
-    the best candidate (as a patch, :func:`_refine_patches`): fitted one grid along its
-    released line either way and with the next length of the ladder up and down
-    (:func:`~updating._candidates.seam_neighbours`), moving while one fits better. Fits join ``short``."""
+    the best candidate (as a patch, :func:`_refine_patches`): its neighbours on its
+    released line (:meth:`~updating._effects.Seam.neighbours`: along, each end out or in,
+    the length ladder) fitted, moving while one fits better. Fits join ``short``."""
     done = {(c.reference.pids, c.reference.nodes): c for c in short
             if c.reference.kind == Seam.kind and c.released is not None}
 
