@@ -40,6 +40,7 @@ from ._effects import (
     Payload,
     Seam,
     PatchStiffness,
+    _seam_lines,
 )
 from ._extension import Extension, extension
 from ._element_sensitivity import KINDS, ElementJacobian, element_jacobian
@@ -221,29 +222,40 @@ def localised_grids(model: Model, screen: Screen, node_scores: dict[int, float],
 
 def region_structures(model: Model, region: list[int], node_score: dict, kinds, n: int) -> list[AbstractEffect]:
     """Joints (RBE2 groups, grids shared by two groups), seams and supports with a grid in the
-    localised ``region`` or scoring high there, best first, at most ``n``; a joint or seam
-    sharing a grid with a better one (a seam: its whole line, which :func:`augment`
-    releases) is left out (:func:`augment` releases them all at once), and so is a joint
-    between a shell and a beam group at a grid of their seam, which a seam walks to
-    (on the 33k barrel such joints took the places of the loose frame's seam)."""
+    localised ``region`` or scoring high there, best first, at most ``n``. :func:`augment`
+    releases them all at once, so a joint or seam that releases a group at a grid where
+    a better one does (a seam: along its whole line; :func:`_moved`) is left out, and so
+    is a joint between a shell and a beam group at a grid of their seam, which a seam
+    walks to (on the 33k barrel such joints took the places of the loose frame's seam)."""
     effects = [e for kind in (Joint, Seam, BoundarySpring) if kind.kind in kinds for e in kind.candidates(model)]
     on_seams = {(g, frozenset(s.pids)) for s in effects if isinstance(s, Seam) for g in s.nodes}
     effects = [e for e in effects if not (isinstance(e, Joint) and len(e.nodes) == 1
                                           and (e.nodes[0], frozenset(e.pids)) in on_seams)]  # a seam of one grid
-    inside, dep = set(region), masters(model)
+    inside, dep, lines = set(region), masters(model), _seam_lines(model)
     score = {e: (any(k in inside or dep.get(k) in inside for k in e.nodes), max(node_score.get(k, 0.0) for k in e.nodes))
              for e in effects}
-    chosen, released = [], set()
+    chosen, released = [], {}
     for e in sorted((e for e in effects if score[e][0] or score[e][1] > 0), key=lambda e: (not score[e][0], -score[e][1])):
         if len(chosen) == n:
             break
-        if e.kind != BoundarySpring.kind:  # a grid released twice would be held by the second release only
-            span = set(e.line(model) if isinstance(e, Seam) else e.nodes)
-            if released & span:
+        if e.kind != BoundarySpring.kind:  # a group released twice at a grid would be held by the second release only
+            span = _moved(e, model, dep, lines)
+            if any(None in (p, q) or p == q for g, p in span for q in released.get(g, ())):
                 continue
-            released |= span
+            for g, p in span:
+                released.setdefault(g, set()).add(p)
         chosen.append(e)
     return chosen
+
+
+def _moved(e: AbstractEffect, model: Model, dep: dict, lines: dict) -> set[tuple[int, int | None]]:
+    """(grid, group) pairs a joint or seam releases: a seam the beam group along its whole
+    line, a joint the groups it moves off a shared grid; None: the grid itself (an
+    RBE2-dependent grid freed from its master). A frame's and a stringer's seams cross at
+    grids but move different groups."""
+    if isinstance(e, Seam):
+        return {(g, e.pids[1]) for g in e.line(model, lines)}
+    return {(g, p) for g in e.nodes for p in (e.pids[1:] if g not in dep else (None,))}
 
 
 @dataclass(frozen=True, eq=False)
@@ -445,11 +457,12 @@ def structural_candidate(aug: Model, released: Released, theta0=None) -> Candida
                      theta0=theta0, prior_mean=np.full(len(stiff.prior_sd), shift), released=released)
 
 
-def seam_neighbours(aug: Model, c: Candidate) -> list[Candidate]:
+def seam_neighbours(aug: Model, c: Candidate, coarse: bool = False) -> list[Candidate]:
     """The seams next to a fitted one on its released line (:meth:`~updating._effects.Seam.neighbours`),
     to start at its fitted values."""
     r, theta = c.released, c.result["theta"]
-    return [structural_candidate(aug, r.seam(s), theta[len(theta) - len(c.theta0):]) for s in c.reference.neighbours(r.line)]
+    return [structural_candidate(aug, r.seam(s), theta[len(theta) - len(c.theta0):])
+            for s in c.reference.neighbours(r.line, coarse)]
 
 
 def shortlist(cands: list[Candidate], best: int, per_kind: int, kinds, within: float) -> list[Candidate]:

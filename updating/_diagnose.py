@@ -457,15 +457,16 @@ def _refine_patches(fitted, model: Model, aug: Model, short: list[Candidate], ba
 
 def _refine_seams(fitted, aug: Model, short: list[Candidate], base: dict) -> list[tuple[Candidate, Candidate]]:
     """Hill-climb of the best fitted seam that takes at least half the cost reduction of
-    the best candidate (as a patch, :func:`_refine_patches`): its neighbours on its
-    released line (:meth:`~updating._effects.Seam.neighbours`: along, each end out or in,
-    the length ladder) fitted, moving while one fits better. Fits join ``short``."""
+    the best candidate (as a patch, :func:`_refine_patches`) on its released line
+    (:meth:`~updating._effects.Seam.neighbours`): first in coarse moves (half its length
+    along, the length ladder), then in fine ones (one grid along, each end out or in),
+    the neighbours fitted, moving while one fits better. Fits join ``short``."""
     done = {(c.reference.pids, c.reference.nodes): c for c in short
             if c.reference.kind == Seam.kind and c.released is not None}
 
-    def fitted_neighbours(best: Candidate) -> list[Candidate]:
+    def fitted_neighbours(best: Candidate, coarse: bool) -> list[Candidate]:
         out = []
-        near = seam_neighbours(aug, best)
+        near = seam_neighbours(aug, best, coarse)
         for i, c in enumerate(near, 1):
             key = c.reference.pids, c.reference.nodes
             if key not in done:
@@ -477,7 +478,10 @@ def _refine_seams(fitted, aug: Model, short: list[Candidate], base: dict) -> lis
 
     bar = _climb_bar(short, base)
     best = min((c for c in done.values() if c.result["cost"] < bar), key=lambda c: c.result["cost"], default=None)
-    return _climb(best, fitted_neighbours) if best is not None else []
+    if best is None:
+        return []
+    moves = _climb(best, lambda c: fitted_neighbours(c, coarse=True))
+    return moves + _climb(moves[-1][1] if moves else best, lambda c: fitted_neighbours(c, coarse=False))
 
 
 def _climb_bar(short: list[Candidate], base: dict) -> float:

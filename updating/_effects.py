@@ -619,9 +619,10 @@ class Seam(AbstractAddedElements):
                 for pids, lines in _seam_lines(model).items() for line in lines
                 for k in range(0, len(line), SEAM_GRIDS)]
 
-    def line(self, model: Model) -> tuple[int, ...]:
-        """The whole line this seam lies on (grids in order along it)."""
-        for line in _seam_lines(model).get(tuple(self.pids), []):
+    def line(self, model: Model, lines: dict | None = None) -> tuple[int, ...]:
+        """The whole line this seam lies on (grids in order along it); ``lines``: the
+        model's seam lines (:func:`_seam_lines`), if at hand."""
+        for line in (_seam_lines(model) if lines is None else lines).get(tuple(self.pids), []):
             if self.nodes[0] in line:
                 return line
         raise ValueError(f"seam at grids {list(self.nodes)}: no line of pid {self.pids[1]} on pid {self.pids[0]} "
@@ -633,15 +634,18 @@ class Seam(AbstractAddedElements):
         return replace(self, nodes=nodes,
                        label=f"grids {nodes[0]}–{nodes[-1]} of pid {self.pids[1]} on pid {self.pids[0]}")
 
-    def neighbours(self, line: tuple[int, ...]) -> list[Seam]:
-        """The seams next to this one on its ``line``: one grid along it either way, each
-        end one grid out or in, and the next length of :data:`SEAM_LENGTHS` up and down
-        about the same centre."""
+    def neighbours(self, line: tuple[int, ...], coarse: bool = False) -> list[Seam]:
+        """The seams next to this one on its ``line``: one grid along it either way and
+        each end one grid out or in; ``coarse``: half its length along either way and the
+        next length of :data:`SEAM_LENGTHS` up and down about the same centre."""
         start, n = line.index(self.nodes[0]), len(self.nodes)
-        runs = [(start - 1, n), (start + 1, n), (start - 1, n + 1), (start, n + 1), (start + 1, n - 1), (start, n - 1)]
-        step = int(np.argmin(np.abs(np.asarray(SEAM_LENGTHS) - n)))
-        runs += [(start + n // 2 - SEAM_LENGTHS[i] // 2, SEAM_LENGTHS[i]) for i in (step - 1, step + 1)
-                 if 0 <= i < len(SEAM_LENGTHS)]
+        if coarse:
+            step = int(np.argmin(np.abs(np.asarray(SEAM_LENGTHS) - n)))
+            runs = [(start - max(1, n // 2), n), (start + max(1, n // 2), n)]
+            runs += [(start + n // 2 - SEAM_LENGTHS[i] // 2, SEAM_LENGTHS[i]) for i in (step - 1, step + 1)
+                     if 0 <= i < len(SEAM_LENGTHS)]
+        else:
+            runs = [(start - 1, n), (start + 1, n), (start - 1, n + 1), (start, n + 1), (start + 1, n - 1), (start, n - 1)]
         runs = [(int(np.clip(s, 0, len(line) - m)), m) for s, m in runs if 2 <= m <= len(line)]
         return [self.run(line, s, m) for s, m in dict.fromkeys(runs) if (s, m) != (start, n)]
 
