@@ -356,8 +356,9 @@ def simulate(element_size: float = COARSE, damage=(*DAMAGE_CENTRE, DAMAGE_RADIUS
     **Returns:** a dict with the healthy ``model``, ``mode_indices`` (the selected model
     modes), ``healthy_hz``, ``healthy_zeta``, ``damaged_hz``, ``damaged_zeta``,
     ``band_hz`` (all model frequencies in the band), ``mu``, ``kappa``, ``true_elements``
-    (the delaminated element ids) and ``peaks`` (the sensor's resonance peaks of the
-    selected modes, relative to the largest in the band).
+    (the delaminated element ids), ``peaks`` (the sensor's resonance peaks of the
+    selected modes, relative to the largest in the band) and ``damaged_shapes`` (the
+    damaged structure's real modes paired with the selected ones, solved DoFs).
     """
     import jax.numpy as jnp
 
@@ -399,6 +400,7 @@ def simulate(element_size: float = COARSE, damage=(*DAMAGE_CENTRE, DAMAGE_RADIUS
         "true_elements": true_elements,
         "peaks": peak[np.searchsorted(band, chosen)] / peak.max(),
         "pairing_overlap": overlap[np.arange(len(chosen)), pair],
+        "damaged_shapes": phi_d[:, pair],
     }
 
 

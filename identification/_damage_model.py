@@ -39,34 +39,17 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, ArrayLike, Float, Int
+from jaxtyping import ArrayLike, Float, Int
 
 import jaxfem
 from jaxfem import STIFFNESS_BLOCKS, Model
+from jaxfem._structural_damping import element_strain_energies, stiffness_ids, with_k_scale
 
 from ._deviations import _scalar
 
 _BATCH = 16  # candidates per vmapped batch of the scan (bounds memory on large models)
 PARTS = ("all", "shear")  # the stiffness a damage candidate softens (module docstring)
 _SHELL_BLOCKS = ("quads", "trias")
-
-
-def _stiffness_ids(model: Model) -> np.ndarray:
-    """Ids of the elements with stiffness, in the order of :data:`jaxfem.STIFFNESS_BLOCKS`."""
-    return np.concatenate([np.asarray(getattr(model, b).ids, dtype=np.int64) for b in STIFFNESS_BLOCKS])
-
-
-def _with_k_scale(model: Model, factor: Float[Array, " nk"]) -> Model:
-    """``model`` with each stiffness element's ``k_scale`` multiplied by ``factor`` (order of
-    :func:`_stiffness_ids`)."""
-    start = 0
-    for name in STIFFNESS_BLOCKS:
-        block = getattr(model, name)
-        n = len(block.ids)
-        new = block.k_scale * factor[start : start + n]
-        model = eqx.tree_at(lambda m, name=name: getattr(m, name).k_scale, model, new)
-        start += n
-    return model
 
 
 def _check_part(part) -> str:
@@ -114,7 +97,7 @@ def _shear_checks(shells: dict[int, tuple[int, bool]], i: int, g: list[int]) -> 
 def _group_masks(model: Model, groups: Sequence[Sequence[int]], part: str = "all") -> np.ndarray:
     """0/1 matrix (n_groups, n_stiffness_elements); ValueError naming unknown ids (and, for
     ``part="shear"``, elements that are not flexible shells)."""
-    ids = _stiffness_ids(model)
+    ids = stiffness_ids(model)
     known = set(ids.tolist())
     massive = set(np.asarray(model.masses.ids).tolist())
     shells = _shells(model) if part == "shear" else {}
@@ -170,11 +153,7 @@ def _scan_damping(
     if first_order:
         phi = phi_h[:, mode_indices]
 
-        def modal_energy(weights):  # φ_nᵀ K(weights) φ_n: linear in the element weights
-            return jnp.sum(phi * jaxfem.assemble(_with_k_scale(base, weights))[0].matmul(phi), axis=0)
-
-        per_element = np.asarray(jax.jacrev(modal_energy)(jnp.ones(masks.shape[1])))  # (m, nk)
-        energy = masks @ per_element.T  # g = φᵀ K_G⁰ φ per candidate and mode
+        energy = masks @ np.asarray(element_strain_energies(base, phi))  # g = φᵀ K_G⁰ φ per candidate and mode
         lam_d = lam_sel - reduction * energy
         if np.any(lam_d <= 0):
             raise ValueError("the first-order damaged eigenvalue is not positive: the damage is too large for "
@@ -187,7 +166,7 @@ def _scan_damping(
     K0 = K0.todense()
 
     def group_stiffness(mask):  # K_G⁰ = Σ_{e∈G} K_e (of the part): assembly is linear in k_scale
-        return jaxfem.assemble(_with_k_scale(base, mask))[0].todense()
+        return jaxfem.assemble(with_k_scale(base, mask))[0].todense()
 
     def damped_modes(k_g0):
         lam, phi = jaxfem.eigh(K0 - reduction * k_g0, M, n_compute)  # K^D = K − s K_G⁰
@@ -259,6 +238,6 @@ def damage_damping(
     mu, kappa = _scalar("mu", mu, -np.inf), _scalar("kappa", kappa, -np.inf)
     part = _check_part(part)
     elements = tuple(int(e) for e in elements)
-    masks = _group_masks(model, [elements], part) if elements else np.zeros((1, len(_stiffness_ids(model))))
+    masks = _group_masks(model, [elements], part) if elements else np.zeros((1, len(stiffness_ids(model))))
     _, omega, zeta = _scan_damping(model, masks, idx, s, eta, mu, kappa, part, bool(first_order))
     return omega[0] / (2.0 * np.pi), zeta[0]

@@ -36,3 +36,7 @@ from ._response import frf_modal as frf_modal
 from ._sensors import SensorMap as SensorMap
 from ._sensors import locate_sensors as locate_sensors
 from ._sensors import sensors_at_grids as sensors_at_grids
+from ._model import StructuralDamping as StructuralDamping
+from ._structural_damping import damping_matrix as damping_matrix
+from ._structural_damping import element_strain_energies as element_strain_energies
+from ._structural_damping import modal_loss_factors as modal_loss_factors

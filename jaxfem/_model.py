@@ -255,6 +255,17 @@ class Viscoelastic(eqx.Module):
     f_ref: Float[Array, ""]
 
 
+class StructuralDamping(eqx.Module):
+    """Structural (hysteretic) loss factors of elements, Nastran's GE: the damping matrix
+    ``G = Σ_e η_e K_e`` adds ``iG`` to the dynamic stiffness (Ewins, *Modal Testing*,
+    §2.3), and mode n gets the modal loss factor ``φ_nᵀGφ_n / φ_nᵀKφ_n`` (modal strain
+    energy; :func:`jaxfem.modal_loss_factors`). ``eids``: elements with stiffness;
+    ``eta``: their loss factors (dimensionless, ≥ 0)."""
+
+    eids: tuple[int, ...] = eqx.field(static=True, converter=lambda ids: tuple(int(i) for i in ids))
+    eta: Float[Array, " e"]
+
+
 _ROWS: dict[int, tuple[np.ndarray, dict[int, int]]] = {}  # id(node_ids) → (node_ids, grid id → row)
 
 
@@ -294,6 +305,7 @@ class Model(eqx.Module):
     lumped: bool = eqx.field(static=True)  # PARAM COUPMASS: False = consistent mass
     k6rot: float = eqx.field(static=True, default=100.0)  # PARAM K6ROT: shell drilling stiffness
     viscoelastic: Viscoelastic | None = None  # frequency-dependent stiffness, see jaxfem.modes
+    damping: StructuralDamping | None = None  # element loss factors, see jaxfem.damping_matrix
 
     def with_effect(self, effect) -> Model:
         """This model with a physical effect added (``updating.Effect``; see its ``apply``)."""

@@ -65,8 +65,9 @@ def frf_direct(
     *,
     D=None,
     eta: ArrayLike = 0.0,
+    G=None,
 ) -> Complex[Array, "f o i"]:
-    """Receptance ``H(ω) = (−ω²M + iωD + (1+iη)K)⁻¹`` by a direct solve (thesis eq. 1.47).
+    """Receptance ``H(ω) = (−ω²M + iωD + (1+iη)K + iG)⁻¹`` by a direct solve (thesis eq. 1.47).
 
     Per frequency the complex dynamic stiffness is LU-factored once and solved for the
     unit loads at ``in_dofs`` only (lineax, vmapped over ω); differentiable in K, M, D
@@ -79,6 +80,8 @@ def frf_direct(
     - ``out_dofs``, ``in_dofs``: response and excitation DoF indices in 0..n−1.
     - ``D``: viscous damping matrix (N·s/m), e.g. :func:`jaxfem.rayleigh`; none if omitted.
     - ``eta``: structural loss factor (dimensionless, ≥ 0), multiplies K.
+    - ``G``: structural damping matrix (N/m) of element loss factors, e.g.
+      :func:`jaxfem.damping_matrix`; none if omitted.
 
     **Returns:** H, complex128, shape (n_freq, n_out, n_in), in m/N. Singular where the
     dynamic stiffness is (undamped resonance; ω = 0 with rigid-body modes).
@@ -90,12 +93,15 @@ def frf_direct(
         D = _square("D", D)
         if D.shape != K.shape:
             raise ValueError(f"D has shape {D.shape} but K has shape {K.shape}")
+    G = _loss_factor(eta) * K if G is None else _loss_factor(eta) * K + _square("G", G)
+    if G.shape != K.shape:
+        raise ValueError(f"G has shape {G.shape} but K has shape {K.shape}")
     n = K.shape[0]
     return _frf_direct(
         K,
         M,
         D,
-        _loss_factor(eta),
+        G,
         _frequencies(omega),
         _dofs("out_dofs", out_dofs, n),
         _dofs("in_dofs", in_dofs, n),
@@ -103,12 +109,12 @@ def frf_direct(
 
 
 @eqx.filter_jit
-def _frf_direct(K, M, D, eta, omega, out_idx, in_idx):
+def _frf_direct(K, M, D, G, omega, out_idx, in_idx):
     n = K.shape[0]
     loads = jnp.zeros((n, in_idx.shape[0]), jnp.complex128).at[in_idx, jnp.arange(in_idx.shape[0])].set(1.0)
 
     def one(w):
-        im = eta * K if D is None else w * D + eta * K
+        im = G if D is None else w * D + G
         op = lx.MatrixLinearOperator(jax.lax.complex(K - w**2 * M, im))
         # Batching over the right-hand sides only: lineax factors the operator once.
         solve = jax.vmap(lambda b: lx.linear_solve(op, b, lx.LU()).value, in_axes=1, out_axes=1)

@@ -17,7 +17,8 @@ from benchmarks import cfrp_panel as cp
 from benchmarks import damage_demo
 from benchmarks.shell_models import plate
 from identification import DamageScan, damage_damping, localise_damage, plot_shell_damage_map, shell_patches
-from identification._damage_model import _part_model, _with_k_scale
+from identification._damage_model import _part_model
+from jaxfem._structural_damping import with_k_scale
 from jaxfem.elements import laminates
 from jaxfem.io import read_bdf, read_bdf_text
 
@@ -99,14 +100,14 @@ def test_shear_part_is_the_delamination_material(small):
     healthy, damaged, group = small
     mask = np.isin(np.concatenate([np.asarray(getattr(healthy, b).ids) for b in jaxfem.STIFFNESS_BLOCKS]), group)
     k = np.asarray(jaxfem.assemble(healthy)[0].todense())
-    k_g0 = np.asarray(jaxfem.assemble(_with_k_scale(_part_model(healthy, "shear"), mask.astype(np.float64)))[0]
+    k_g0 = np.asarray(jaxfem.assemble(with_k_scale(_part_model(healthy, "shear"), mask.astype(np.float64)))[0]
                       .todense())
     k_true = np.asarray(jaxfem.assemble(damaged)[0].todense())
     scale = np.abs(k).max()
     np.testing.assert_allclose(k - 0.9 * k_g0, k_true, rtol=0, atol=1e-11 * scale)
     assert np.abs(k_g0).max() > 1e-4 * scale  # and the shear part is not nothing
     # part="all": the whole element stiffness of the group
-    k_all = np.asarray(jaxfem.assemble(_with_k_scale(healthy, mask.astype(np.float64)))[0].todense())
+    k_all = np.asarray(jaxfem.assemble(with_k_scale(healthy, mask.astype(np.float64)))[0].todense())
     k_rest = np.asarray(jaxfem.assemble(jaxfem.correct(healthy, [group.tolist()], np.array([-1.0])))[0].todense())
     np.testing.assert_allclose(k_all, k - k_rest, rtol=0, atol=1e-11 * scale)
 

@@ -36,6 +36,9 @@ from ._effects import Joint as Joint
 from ._effects import Delamination as Delamination
 from ._effects import DistributedMass as DistributedMass
 from ._effects import PatchStiffness as PatchStiffness
+from ._effects import LocalDamping as LocalDamping
+from ._damping import DampingDiagnosis as DampingDiagnosis
+from ._damping import diagnose_damping as diagnose_damping
 from ._reference import relative_to as relative_to
 from ._effects import at_reference as at_reference
 from ._effects import effect_parameters as effect_parameters

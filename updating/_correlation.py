@@ -396,8 +396,9 @@ def pair_modes(
     Candidates are admissible when ``MAC ≥ min_mac`` (eq. 1.54) and ``|Δf| ≤
     max_freq_dev`` (eq. 4.1); among them the assignment with the largest total MAC is
     found exactly (Hungarian method, ``scipy.optimize.linear_sum_assignment`` on −MAC
-    with inadmissible entries set to 0, then dropped). Based on shapes, not frequency
-    order, so it follows crossing modes. Host-side (not jittable); see
+    with inadmissible entries set to 0, then dropped; equal MACs, as at one sensor, go to
+    the nearest frequencies). Based on shapes, not frequency order, so it follows
+    crossing modes. Host-side (not jittable); see
     :func:`pair_modes_masked` inside jit/vmap.
 
     **Arguments:** model frequencies (Hz) and shapes ``f_a, phi_a``; test frequencies and
@@ -412,7 +413,8 @@ def pair_modes(
     min_mac, max_freq_dev = _check_thresholds(min_mac, max_freq_dev)
     m, dev, ok = (np.asarray(x) for x in _candidates(f_a, phi_a, f_e, phi_e, min_mac, max_freq_dev))
     f_a, f_e = np.asarray(f_a, np.float64), np.asarray(f_e, np.float64)
-    rows, cols = linear_sum_assignment(np.where(ok, -m, 0.0))
+    # equal MACs (one sensor: every MAC is 1) go to the smallest total |Δf|
+    rows, cols = linear_sum_assignment(np.where(ok, -m + 1e-9 * np.abs(dev), 0.0))
     keep = ok[rows, cols]
     order = np.argsort(cols[keep])
     model, test = rows[keep][order], cols[keep][order]

@@ -25,6 +25,9 @@
    declared only when it is decisively more probable than the baseline, lowers χ² beyond
    noise and lowers the held-out error in frequencies and in shapes; places of one kind
    the data cannot tell apart are reported as ties.
+5. **Damping**, where the test has damping ratios of at least four modes: which region's
+   loss factor they ask for beyond Rayleigh damping (:func:`updating.diagnose_damping`,
+   the ``damping`` effect), on the baseline's modes.
 
 Residual rows are weighted by the expected measurement noise (relative frequency σ_f,
 relative shape σ_φ per component), so the cost is a χ² and frequencies and shapes weigh
@@ -70,7 +73,8 @@ from ._candidates import (
     with_masks,
 )
 from ._correlation import comac, pair_modes
-from ._effects import KINDS, AbstractEffect, AbstractPatch, Seam
+from ._damping import MIN_MODES, diagnose_damping
+from ._effects import KINDS, AbstractEffect, AbstractPatch, LocalDamping, Seam
 from ._eigensolvers import AbstractEigensolver, Direct
 from ._engine import Settings
 from ._evidence import (
@@ -107,7 +111,8 @@ class DiagnoseOptions:
     """Settings of :func:`diagnose`.
 
     ``noise_freq``/``noise_shape``: expected relative σ of measured frequencies and of
-    shape components (Table 4.7 magnitudes). ``region``: the localised region holds the
+    shape components (Table 4.7 magnitudes); ``noise_damping``: of measured damping
+    ratios (identified damping scatters by 5–20 %). ``region``: the localised region holds the
     grids of the groups screening at least this share of the best and the grids scoring at
     least this share of the best (at most ``max_nodes`` grids and ``max_structural``
     joints or supports). Fitted: the ``shortlist`` best
@@ -130,6 +135,7 @@ class DiagnoseOptions:
 
     noise_freq: float = 0.002
     noise_shape: float = 0.01
+    noise_damping: float = 0.1
     eigensolver: str = "auto"
     folds: int = 4
     region: float = 0.3
@@ -165,6 +171,7 @@ class Diagnosis:
     element_scores: dict[int, float]
     node_scores: dict[int, float]
     sensor_modes: tuple  # baseline model frequencies (Hz) and shapes at the sensors
+    damping: LocalDamping | None = None  # the loss factor the measured damping asks for (diagnose_damping)
 
     def to_json(self) -> dict:
         """The JSON-ready ``report`` (NaN and inf as null)."""
@@ -353,11 +360,18 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
         "noise": {"freq_pct": 100 * options.noise_freq, "shape_pct": 100 * options.noise_shape},
     }
     report["verdict"] = verdict(report)
+    damping = None
+    if LocalDamping.kind in options.kinds and np.sum(np.asarray(test.damping_ratios) > 0) >= MIN_MODES:
+        damped = diagnose_damping(nominal_problem.model(jnp.asarray(theta_b)), test, noise=options.noise_damping,
+                                  folds=options.folds, min_mac=problem.min_mac,
+                                  max_freq_dev=problem.max_freq_dev, progress=say)
+        damping, report["damping"] = damped.effect, damped.report
+        report["verdict"] += " Damping: " + damped.report["verdict"]
     report["seconds"] = time.perf_counter() - start
     say(f"diagnosis done in {report['seconds']:.1f} s")
     return Diagnosis(report, best, ranked, model, params, combine(
         {e: v for e, v in elem_a.items() if e in set(model.element_ids().tolist())}, elem_b), node_score,
-        (np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model)))
+        (np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model)), damping)
 
 
 def _threaded(fn, jobs: list, threads: int | None):

@@ -226,6 +226,7 @@ class FrequencyDependentStiffness(AbstractGroupEffect):
 # patches of shells: a delamination, a local loss of stiffness, distributed mass
 
 
+ETA_SD = 0.3  # prior σ of a local loss factor: friction 0.01–0.1, visco-elastic layers 0.1–1
 RADII = (0.75, 1.7, 2.6, 3.6)  # patch radius ladder, in shell element sizes: about a grid 4, 12, 24 and 44 square shells
 
 
@@ -420,6 +421,64 @@ class DistributedMass(AbstractPatch):
     def advice(self, sd) -> str:
         return (f"add non-structural mass of {spread(self.nsm, float(np.atleast_1d(sd)[0]), 'kg/m²')} "
                 f"over the {self.where()}")
+
+
+class LocalDamping(AbstractPatch):
+    """A local structural loss factor: a visco-elastic layer, friction in a joint or
+    between delaminated plies. The elements of a patch (shells about a grid) or ``eids``
+    (a property group, the beams at a grid) get loss factor ``eta`` (Nastran GE) on their
+    whole stiffness, :class:`jaxfem.StructuralDamping`. It changes no stiffness or mass,
+    so no modal update can fit it: :func:`updating.diagnose_damping` does, from measured
+    modal damping (eq. 3.40 plus the modal strain energy of the elements)."""
+
+    nodes: tuple[int, ...] = ids_field()
+    eids: tuple[int, ...] = ids_field()
+    label: str = label_field()
+    radius: float = eqx.field(static=True, default=0.0)
+    eta: float | None = value_field()
+
+    kind = "damping"
+    value_names = ("eta",)
+    scales = "eta"
+    scan = None
+    prior_sd = (ETA_SD,)  # on η itself (≥ 0; half-normal), not on a log-factor
+
+    def where(self) -> str:
+        return self.label or ("the " + super().where())
+
+    def apply(self, model: Model) -> Model:
+        eids, eta = tuple(int(e) for e in self.elements(model)), self._need("eta")
+        old = model.damping
+        kept = {} if old is None else {e: v for e, v in zip(old.eids, np.asarray(old.eta)) if e not in set(eids)}
+        kept.update(dict.fromkeys(eids, eta))
+        return replace(model, damping=jaxfem.StructuralDamping(tuple(kept), jnp.asarray(list(kept.values()))))
+
+    def at_reference(self, model: Model, f_test_hz) -> LocalDamping:
+        """A loss factor of 0.1 (a structural adhesive or a lightly damped visco-elastic layer)."""
+        return replace(self.located(model) if not self.eids else self, eta=0.1)
+
+    def _modal_only(self):
+        raise ValueError(f"effect damping at {self.where()}: a loss factor changes no stiffness or mass, so the "
+                         "modal update cannot fit it; updating.diagnose_damping fits it from measured damping")
+
+    def parameters(self, before: Model, after: Model) -> tuple[Parameter, ...]:
+        self._modal_only()
+
+    def extension(self, model: Model, extended: Model) -> Extension:
+        self._modal_only()
+
+    def updated(self, theta) -> LocalDamping:
+        """At loss factor θ[0] (linear, not a log-factor: η may be 0)."""
+        return replace(self, eta=float(np.asarray(theta, float)[0]))
+
+    def plausibility(self, total_mass: float, reference: AbstractEffect | None = None) -> list[str]:
+        if self.eta > 2.0:
+            return [f"loss factor {self.eta:.2g}: beyond the most damping visco-elastic materials (about 2)"]
+        return []
+
+    def advice(self, sd) -> str:
+        s = float(np.atleast_1d(sd)[0])
+        return f"give {self.where()} a structural loss factor η = {self.eta:.3g} (±{s:.2g})"
 
 
 PATCH_KINDS = (Delamination, PatchStiffness, DistributedMass)
@@ -946,7 +1005,8 @@ class Payload(AbstractMass):
 
 
 _TYPES: dict[str, type[AbstractEffect]] = {t.kind: t for t in (
-    GroupStiffness, GroupMass, Joint, Seam, AddedMass, Payload, BoundarySpring, FrequencyDependentStiffness, *PATCH_KINDS)}
+    GroupStiffness, GroupMass, Joint, Seam, AddedMass, Payload, BoundarySpring, FrequencyDependentStiffness, *PATCH_KINDS,
+    LocalDamping)}
 KINDS = tuple(_TYPES)
 
 

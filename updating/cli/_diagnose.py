@@ -35,7 +35,22 @@ def _print_diagnosis(rep: dict) -> None:
                    f"  {'yes' if e['warranted'] else 'no'}{notes}")
     typer.echo(f"(posterior over the candidates and the baseline, {rep['baseline_posterior']:.3f}; ln B: log Bayes "
                f"factor against the baseline; noise scaled by {rep['noise_scale']:.3g})")
+    if "damping" in rep:
+        _print_damping(rep["damping"])
     typer.echo(rep["verdict"])
+
+
+def _print_damping(d: dict) -> None:
+    b = d["baseline"]
+    typer.echo(f"damping (loss factor of a region beyond Rayleigh, {len(d['modes'])} modes, {d['regions_fitted']} "
+               f"regions): Rayleigh alone χ²/row {b['chi2_per_row']:.2f}, held-out ζ error "
+               f"{b['heldout_rms_zeta_dev_pct']:.1f} %")
+    typer.echo(f"{'rank':>4} {'region':<44} {'η':>14} {'posterior':>9} {'ln B':>8} {'χ²/row':>8} "
+               f"{'held-out ζ err [%]':>19}  declared")
+    for e in d["effects"][:5]:
+        typer.echo(f"{e['rank']:>4} {e['where'][:44]:<44} {e['eta']:>7.3g} ±{e['eta_sd']:<5.2g} {e['posterior']:>9.3f} "
+                   f"{e['log_evidence']:>8.1f} {e['chi2_per_row']:>8.2f} {e['heldout_rms_zeta_dev_pct_before']:>8.1f} → "
+                   f"{e['heldout_rms_zeta_dev_pct_after']:<8.1f}  {'yes' if e['warranted'] else 'no'}")
 
 
 def _print_confirmation(after: dict) -> None:
@@ -164,6 +179,9 @@ def diagnose(
                                                   help="measured FRFs (UFF 58) predicted before/after")] = None,
     noise_freq: Annotated[float, typer.Option("--noise-freq", help="expected frequency error, % (1σ)")] = 0.2,
     noise_shape: Annotated[float, typer.Option("--noise-shape", help="expected shape error per component, % (1σ)")] = 1.0,
+    noise_damping: Annotated[float, typer.Option(
+        "--noise-damping", help="expected error of measured damping ratios, % of each ratio (1σ); used when TEST "
+                                "has damping ratios of at least four modes")] = 10.0,
     solver: SolverOpt = None,
     reference_path: Annotated[Path | None, typer.Option(
         "--reference", metavar="HEALTHY.uff", exists=True, dir_okay=False,
@@ -184,10 +202,10 @@ def diagnose(
     change = None
     if reference_path is not None:
         test, change = _relative(model, test, reference_path, check_solver(solver) or "auto")
-    if not (noise_freq > 0 and noise_shape > 0):
-        fail("--noise-freq and --noise-shape must be positive (percent)")
+    if not (noise_freq > 0 and noise_shape > 0 and noise_damping > 0):
+        fail("--noise-freq, --noise-shape and --noise-damping must be positive (percent)")
     options = DiagnoseOptions(noise_freq=noise_freq / 100, noise_shape=noise_shape / 100,
-                              eigensolver=check_solver(solver), ray=ray)
+                              noise_damping=noise_damping / 100, eigensolver=check_solver(solver), ray=ray)
     diagnosis(model, test, params, model_name=model_path.name, test_name=test_path.name, json_out=json_out,
               report=report, frf_path=frf_path, options=options,
               reference=None if change is None else {"file": reference_path.name, "modes": change})
