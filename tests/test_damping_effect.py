@@ -120,3 +120,39 @@ def test_bad_damping_input_is_refused(beam):
     far = ModalData(np.array([1e3, 2e3, 3e3, 4e3]) * 50, np.ones((1, 4)), sensors, damping_ratios=np.full(4, 0.01))
     with pytest.raises(ValueError, match="only 0 measured modes with damping pair"):
         diagnose_damping(model, far)
+
+
+@pytest.mark.slow(seconds=35)  # measured 32 s
+def test_a_viscoelastic_patch_on_the_cfrp_panel_is_found():
+    """The coarse CFRP panel (25 mm shells, thesis §5.3) with a visco-elastic patch: loss
+    factor 0.3 on the whole stiffness of the four shells of the benchmark's delamination,
+    Rayleigh damping as the benchmark's; the truth's poles from the complex eigenproblem
+    in the basis of 80 real modes (the local loss couples them), its 14 lowest modes in
+    40 Hz – 1.28 kHz with 2 % noise on the ratios. The patch ranks first, exactly, with η
+    within 5 % and the held-out damping error below 2× the stated noise (measured: the
+    four shells, η = 0.299, 33 % → 2.0 %, posterior 1.00)."""
+    from benchmarks import cfrp_panel as cp
+
+    model = cp.build(cp.COARSE)
+    damaged = cp.build(cp.COARSE, (*cp.DAMAGE_CENTRE, cp.DAMAGE_RADIUS))
+    true = np.asarray(damaged.quads.ids)[np.isin(damaged.quads.pids, (cp.PID_DAMAGED, cp.PID_DAMAGED_PIEZO))]
+    k, m = jaxfem.assemble(model)
+    lam, phi = (np.asarray(a) for a in jaxfem.eigh(k, m, cp.N_BASIS))
+    band = np.flatnonzero((lam >= (2 * np.pi * cp.F_BAND[0]) ** 2) & (lam <= (2 * np.pi * cp.F_BAND[1]) ** 2))
+    mu, kappa = (float(v) for v in jaxfem.rayleigh_coefficients(np.sqrt(lam[band[0]]), np.sqrt(lam[band[-1]]),
+                                                                  cp.ZETA_BAND, cp.ZETA_BAND))
+    patch = LocalDamping(eids=tuple(true.tolist()), eta=0.3)
+    f, zeta = cp.damped_poles(lam, phi, np.asarray(jaxfem.damping_matrix(patch.apply(model)).todense()), mu, kappa)
+    ids, xyz = np.asarray(model.node_ids), np.asarray(model.xyz)
+    plate = ids[(np.abs(xyz[:, 2]) < 1e-9) & (xyz[:, 0] > 1e-9)]  # the base plate's free grids, out of plane
+    sensors = Sensors.from_components(plate.tolist(), [3] * len(plate))
+    C, _ = observation_matrix(model, sensors)
+    sel = band[:14]
+    noisy = zeta[sel] * (1 + 0.02 * np.random.default_rng(0).standard_normal(len(sel)))
+    noise = 0.05
+    found = diagnose_damping(model, ModalData(f[sel], np.asarray(C) @ phi[:, sel], sensors, damping_ratios=noisy),
+                             noise=noise)
+    top = found.report["effects"][0]
+    assert found.effect is not None and set(found.effect.eids) == set(true.tolist())
+    assert abs(top["eta"] - 0.3) < 0.05 * 0.3 and top["posterior"] > 0.95
+    assert top["heldout_rms_zeta_dev_pct_after"] < 2 * 100 * noise < top["heldout_rms_zeta_dev_pct_before"]
