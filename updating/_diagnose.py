@@ -27,7 +27,7 @@
    the data cannot tell apart are reported as ties.
 5. **Damping**, where the test has damping ratios of at least four modes: which region's
    loss factor they ask for beyond Rayleigh damping (:func:`updating.diagnose_damping`,
-   the ``damping`` effect), on the baseline's modes.
+   the ``damping`` effect), on the modes of the baseline with the declared effect.
 
 Residual rows are weighted by the expected measurement noise (relative frequency σ_f,
 relative shape σ_φ per component), so the cost is a χ² and frequencies and shapes weigh
@@ -362,7 +362,8 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     report["verdict"] = verdict(report)
     damping = None
     if LocalDamping.kind in options.kinds and np.sum(np.asarray(test.damping_ratios) > 0) >= MIN_MODES:
-        damped = diagnose_damping(nominal_problem.model(jnp.asarray(theta_b)), test, noise=options.noise_damping,
+        at = nominal_problem.model(jnp.asarray(theta_b))  # the baseline, with the structural effect if one was found
+        damped = diagnose_damping(at if best is None else best.apply(at), test, noise=options.noise_damping,
                                   folds=options.folds, min_mac=problem.min_mac,
                                   max_freq_dev=problem.max_freq_dev, progress=say)
         damping, report["damping"] = damped.effect, damped.report
