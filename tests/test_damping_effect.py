@@ -15,7 +15,7 @@ import pytest
 import jaxfem
 from benchmarks import damage_demo as dd
 from identification import ModalData, Sensors, observation_matrix
-from updating import DiagnoseOptions, LocalDamping, diagnose, diagnose_damping, parse_effect
+from updating import LocalDamping, diagnose_damping, parse_effect
 from updating._damping import regions
 
 LOSS_ELEMENT, LOSS = 7, 0.15  # the truth: a loss factor in one element of the cantilever, no stiffness change
@@ -77,30 +77,45 @@ def _identified(model, mu, kappa, elements, seed=0):
     return f, zeta, np.asarray(phi)
 
 
-def test_a_local_loss_factor_is_found_from_frfs(beam):
+def test_a_local_loss_factor_is_found_from_frfs(beam, tmp_path):
     """The truth: hysteretic loss in element 7 (exact complex stiffness), Rayleigh damping;
-    measured at the tip, identified by SDOF fits. The diagnosis' model is first order
-    (modal strain energy on the real modes): element 7 ranks first, η within 5 % of the
-    truth, held-out damping error below 2× the stated noise; the structural diagnosis
-    (frequencies, and shapes at ten grids) finds nothing to add. Its control (Rayleigh
-    only) claims nothing."""
+    measured at the tip, identified by SDOF fits, written to a universal file with the
+    model's shapes at ten grids. The diagnosis' model is first order (modal strain energy
+    on the real modes): through ``jaxfem diagnose`` element 7 ranks first, η within 5 % of
+    the truth, held-out damping error below 2× the stated noise, the damping table and
+    plot in the report; the structural diagnosis finds nothing to add. Its control
+    (Rayleigh only) claims nothing."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from identification import write_uff
+    from updating.cli import app
+
     model, mu, kappa = beam
     f, zeta, phi = _identified(model, mu, kappa, (LOSS_ELEMENT,))
     grids = list(range(3, dd.N_ELEMENTS + 2, 2))
     sensors = Sensors.from_components(grids, [2] * len(grids))
     C, _ = observation_matrix(model, sensors)
     test = ModalData(f, np.asarray(C) @ phi, sensors, damping_ratios=zeta)
+    (tmp_path / "beam.bdf").write_text(dd.cantilever_bdf())
+    write_uff(tmp_path / "modes.uff", modes=test)
     noise = 0.05
-    found = diagnose(model, test, options=DiagnoseOptions(noise_damping=noise))
-    rep = found.report
-    assert rep["outcome"] != "effect" and found.best is None
+    result = CliRunner().invoke(app, ["diagnose", str(tmp_path / "beam.bdf"), str(tmp_path / "modes.uff"),
+                                      "--json", str(tmp_path / "d.json"), "--report", str(tmp_path / "report"),
+                                      "--noise-damping", str(100 * noise)])
+    assert result.exit_code == 0, result.output
+    rep = json.loads((tmp_path / "d.json").read_text())
+    assert rep["outcome"] != "effect" and "after" not in rep
     d = rep["damping"]
-    assert d["outcome"] == "effect" and found.damping.eids == (LOSS_ELEMENT,)
     top = d["effects"][0]
-    assert top["where"] == f"element {LOSS_ELEMENT}" and top["posterior"] > 0.95 and top["warranted"]
+    assert d["outcome"] == "effect" and top["eids"] == [LOSS_ELEMENT] and top["warranted"]
+    assert top["where"] == f"element {LOSS_ELEMENT}" and top["posterior"] > 0.95
     assert abs(top["eta"] - LOSS) < 0.05 * LOSS
     assert top["heldout_rms_zeta_dev_pct_after"] < 2 * 100 * noise < top["heldout_rms_zeta_dev_pct_before"]
     assert rep["verdict"].endswith(d["verdict"]) and "Give element 7 a structural loss factor" in d["verdict"]
+    assert "element 7" in result.output and "Damping: a local loss factor" in (tmp_path / "report/report.html").read_text()
+    assert (tmp_path / "report/damping.png").exists()
 
     f0, zeta0, _ = _identified(model, mu, kappa, ())
     control = diagnose_damping(model, ModalData(f0, test.shapes, sensors, damping_ratios=zeta0), noise=noise)

@@ -19,7 +19,9 @@ most probable region is declared when it is decisively more probable than Raylei
 damping alone (ln Bayes factor ≥ ln 20), lowers χ² beyond noise and lowers the
 held-out χ² of the damping ratios (modes held out in folds, each predicted by a fit on
 the others) beyond noise. Priors: η half-normal (σ :data:`~updating._effects.ETA_SD`),
-μ and κ broad normals.
+μ and κ broad normals. Where even the best region leaves χ²/row above 1, σ² is scaled by
+it (``noise_scale``). The posterior is over Rayleigh alone and the ``n_report`` most
+probable regions (neighbouring patches share it where the data cannot tell them apart).
 """
 
 from __future__ import annotations
@@ -46,8 +48,9 @@ MIN_MODES = 4  # measured damping ratios a diagnosis needs (three numbers are fi
 
 @dataclass
 class DampingDiagnosis:
-    """``report`` (JSON-ready: ``outcome`` "effect" or "none_needed", ``baseline``,
-    ``effects`` best first, ``verdict``) and the declared ``effect`` (or None)."""
+    """``report`` (JSON-ready: ``outcome`` "effect" or "none_needed", ``modes`` (measured
+    ζ, Rayleigh's fit ``zeta_baseline``, the first-ranked region's ``zeta_best``),
+    ``baseline``, ``effects`` best first, ``verdict``) and the declared ``effect`` (or None)."""
 
     report: dict
     effect: LocalDamping | None
@@ -170,7 +173,6 @@ def diagnose_damping(model: Model, test: ModalData, *, noise: float = 0.1, folds
     prior_b = np.full(2, BASE_SD)
     prior_c = np.array([BASE_SD, BASE_SD, ETA_SD])
     base = _fit(B, y, prior_b)
-    lz_b, _, _ = log_evidence(base, np.zeros(2), prior_b, 1.0)
     fitted = []
     for c in cands:
         col = 0.5 * share[[col_of[e] for e in c.eids]].sum(axis=0) * w
@@ -212,11 +214,13 @@ def diagnose_damping(model: Model, test: ModalData, *, noise: float = 0.1, folds
     if effects and all(effects[0]["checks"].values()):
         effects[0]["warranted"] = True
         best = top[0][1].updated([top[0][3]["theta"][2]])
+    predicted = lambda A, theta: y_raw - (y - A @ theta) / w  # noqa: E731  ζ of a fit, per mode
+    z_best = predicted(np.column_stack([B, top[0][2]]), top[0][3]["theta"]) if top else np.full(n, np.nan)
     report = {
         "outcome": "effect" if best is not None else "none_needed",
-        "modes": [{"test_mode": int(j), "f_test_hz": float(test.frequencies_hz[j]), "zeta_test": float(zeta_e[j]),
-                   "model_mode": int(i), "zeta_baseline": float(z)}
-                  for j, i, z in zip(rows, idx, y_raw - (y - B @ base["theta"]) / w)],
+        "modes": [{"test_mode": int(j) + 1, "f_test_hz": float(test.frequencies_hz[j]), "zeta_test": float(zeta_e[j]),
+                   "model_mode": int(i) + 1, "zeta_baseline": float(zb), "zeta_best": float(zt)}
+                  for j, i, zb, zt in zip(rows, idx, predicted(B, base["theta"]), z_best)],
         "baseline": {"chi2_per_row": float(base["cost"] / n), "heldout_rms_zeta_dev_pct": rms(r_b),
                      "posterior": float(post[0])},
         "noise_pct": 100 * noise, "noise_scale": float(scale), "regions_fitted": len(cands), "effects": effects,

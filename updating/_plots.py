@@ -156,6 +156,29 @@ def plot_convergence(history, names: Sequence[str], path: str | Path, active=Non
     return _save(fig, path)
 
 
+def plot_damping(damping: dict, path: str | Path) -> Path:
+    """Modal damping ratio ζ [%] per mode against its test frequency: measured (with its
+    stated σ), Rayleigh damping alone fitted, and with the first-ranked region's loss
+    factor (``damping``: the report of :func:`updating.diagnose_damping`). **Returns:** the path."""
+    rows = damping["modes"]
+    f = np.array([r["f_test_hz"] for r in rows])
+    z = 100 * np.array([r["zeta_test"] for r in rows])
+    fig = _figure(7.0, 4.0)
+    ax = fig.add_subplot()
+    ax.errorbar(f, z, yerr=z * damping["noise_pct"] / 100, fmt="o", color="black", capsize=3, label="measured (±σ)")
+    ax.plot(f, 100 * np.array([r["zeta_baseline"] for r in rows]), "s--", color="tab:orange", label="Rayleigh alone")
+    if damping["effects"] and rows[0].get("zeta_best") is not None:
+        top = damping["effects"][0]
+        ax.plot(f, 100 * np.array([r["zeta_best"] for r in rows]), "^-", color="tab:blue",
+                label=f"+ η = {top['eta']:.3g} on {top['where']}"[:60] + ("" if top["warranted"] else " (not declared)"))
+    ax.set_xlabel("test frequency [Hz]")
+    ax.set_ylabel("damping ratio ζ [%]")
+    ax.set_title("Modal damping: measured and predicted")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    return _save(fig, path)
+
+
 def plot_frf_overlay(freqs_hz, measured, curves: dict, label: str, path: str | Path, unit: str) -> Path:
     """Magnitude of one measured FRF with model predictions (e.g. before/after updating)."""
     fig = _figure(7.0, 4.0)

@@ -127,9 +127,9 @@ def write_report(diagnosis: dict, figures: dict, path) -> Path:
     **Arguments:** ``diagnosis``: dict with any of ``model``, ``test``, ``verdict``,
     ``paired_modes``, ``unpaired_test``, ``unpaired_model``, ``baseline``,
     ``sensors``, ``localisation`` (``groups``, ``nodes``), ``effects``,
-    ``outcome``, ``after``; ``figures``: name → matplotlib figure (or PNG
+    ``outcome``, ``damping``, ``after``; ``figures``: name → matplotlib figure (or PNG
     path); names ``mac``, ``freq_dev``, ``localisation_surface`` (the indicator on the
-    shells), ``localisation_groups``, ``localisation_nodes``, ``effects``,
+    shells), ``localisation_groups``, ``localisation_nodes``, ``effects``, ``damping``,
     ``freq_dev_after``, ``mac_after``, ``convergence`` go to their section, others under
     "More plots". Sections without data are left out.
     **Returns:** the path written.
@@ -183,6 +183,21 @@ def write_report(diagnosis: dict, figures: dict, path) -> Path:
         "parameters' freedom; score: % of the cross-validated residual removed; delta_aic: ΔAIC.</p>"
         if effects else "",
         outcome, *figs_of("effects")])
+
+    damping = d.get("damping") or {}
+    section("Damping: a local loss factor", [
+        f'<div class="verdict">{html.escape(str(damping["verdict"]))}</div>' if damping else "",
+        "<h3>Per mode</h3>" + _table(damping["modes"], ["test_mode", "f_test_hz", "zeta_test", "zeta_baseline",
+                                                      "zeta_best", "model_mode"]) if damping else "",
+        "<h3>Regions</h3>" + _table(damping["effects"], ["rank", "where", "eta", "eta_sd", "posterior",
+                                                         "log_evidence", "chi2_per_row",
+                                                         "heldout_rms_zeta_dev_pct_before",
+                                                         "heldout_rms_zeta_dev_pct_after", "warranted"])
+        if damping.get("effects") else "",
+        "<p>ζ: viscous damping ratio; zeta_baseline: Rayleigh damping alone (eq. 3.40) fitted; zeta_best: with "
+        "the first-ranked region's loss factor η (modal strain energy); held-out: each mode predicted by a fit "
+        "on the other folds, % of the measured ratio.</p>" if damping else "",
+        *figs_of("damping")])
 
     after = d.get("after") or {}
     section("After adding the effect", [

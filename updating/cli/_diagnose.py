@@ -87,7 +87,7 @@ def _surface_figure(rep: dict, diag, model, test):
 def _figures(rep: dict, diag, confirmation, model, test, report: Path) -> dict:
     """The report's plots: comparison, localisation, ranking and, with an effect added, after."""
     from .. import _correlation as corr
-    from .._plots import plot_convergence, plot_effect_ranking, plot_freq_dev, plot_mac, plot_structure
+    from .._plots import plot_convergence, plot_damping, plot_effect_ranking, plot_freq_dev, plot_mac, plot_structure
 
     f_e, phi_e = np.asarray(test.frequencies_hz), np.asarray(test.shapes)
     f_a, phi_a = diag.sensor_modes
@@ -119,6 +119,8 @@ def _figures(rep: dict, diag, confirmation, model, test, report: Path) -> dict:
         figures["mac_after"] = plot_mac(np.asarray(corr.mac(phi_u, phi_e)).T, mode_labels(f_e), mode_labels(f_u),
                                         report / "mac_after.png", "MAC after adding the effect")
         figures["convergence"] = plot_convergence(res.history, res.names, report / "convergence.png", active=active)
+    if "damping" in rep:
+        figures["damping"] = plot_damping(rep["damping"], report / "damping.png")
     if "frf" in rep and (report / "frf.png").exists():
         figures["frf"] = report / "frf.png"
     return figures
