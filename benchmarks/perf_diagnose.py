@@ -261,7 +261,8 @@ def _seam_found(model, top: dict, grids: tuple[int, ...]) -> bool:
     return off <= pitch * (1 + 1e-9) and abs(rung(len(top["nodes"])) - rung(len(grids))) <= 1
 
 
-def run_barrel(control: bool = False, n_dof: int = 33_000, eigensolver: str = "auto", hidden: str = "grid") -> dict:
+def run_barrel(control: bool = False, n_dof: int = 33_000, eigensolver: str = "auto", hidden: str = "grid",
+               ray: str | None = None) -> dict:
     """The EC 135-size barrel (``benchmarks.fuselage``) lacking a payload of
     :data:`BARREL_MASS` kg on its floor (:func:`payload_cards`: ``hidden`` = ``grid``,
     ``rbe3`` or ``box``; the truth: the same mesh with those cards, read from its own
@@ -271,14 +272,16 @@ def run_barrel(control: bool = False, n_dof: int = 33_000, eigensolver: str = "a
     its row. ``eigensolver``: the diagnosis' (``auto``: sparse at 33k DoFs, which leaves
     the frequency laws out). Right: a mass ranked first centred within half a frame pitch
     of the payload; a seam of the frames within one grid and one ladder step of the loose
-    stretch (:func:`_seam_found`)."""
+    stretch (:func:`_seam_found`). ``ray``: the candidate fits on that Ray cluster
+    (``local``: 2 workers)."""
     from benchmarks import fuselage
     from updating import DiagnoseOptions
 
     model, test, grids, centre = barrel_case(n_dof, hidden, control)
     xyz = np.asarray(model.xyz)
     start = time.perf_counter()
-    options = DiagnoseOptions(noise_freq=0.001, noise_shape=0.01, eigensolver=eigensolver)
+    options = DiagnoseOptions(noise_freq=0.001, noise_shape=0.01, eigensolver=eigensolver, ray=ray,
+                              ray_workers=2 if ray else None)
     report = diagnose(model, test, options=options, progress=_progress).report
     seconds = time.perf_counter() - start
     top = report["effects"][0] if report["outcome"] == "effect" else None
@@ -292,7 +295,8 @@ def run_barrel(control: bool = False, n_dof: int = 33_000, eigensolver: str = "a
     else:
         right = off is not None and top["kind"] != "seam" and off <= fuselage.FRAME_PITCH / 2
     where = f"{grids[0]}–{grids[-1]}" if hidden == "seam" else str(grids[0])
-    return _row("barrel control" if control else f"barrel {hidden}", "none" if control else f"{HIDDEN[hidden]} {where}",
+    name = ("barrel control" if control else f"barrel {hidden}") + (f" (Ray {ray}, 2 workers)" if ray else "")
+    return _row(name, "none" if control else f"{HIDDEN[hidden]} {where}",
                 model, test, report, seconds, right, centre_off_m=off)
 
 
@@ -305,7 +309,8 @@ def main() -> None:
                         help="the barrel's hidden effects: a payload as a CONM2 at a grid, on an RBE3 over a shell, "
                              "or a box there (payload_cards), a loose frame-to-skin seam (loose_seam)")
     parser.add_argument("--barrel-dof", type=int, default=33_000, help="the barrel's size (DoFs)")
-    parser.add_argument("--ray", help="also the --cases with their candidate fits on Ray (local: 2 workers here)")
+    parser.add_argument("--ray", help="also the --cases and the barrel's first hidden effect with their candidate fits "
+                                      "on Ray (local: 2 workers here)")
     parser.add_argument("--json", help="write the rows as JSON")
     args = parser.parse_args()
     print(f"# {platform.processor() or platform.machine()}, {os.cpu_count()} cores, jax {jax.__version__}")
@@ -320,6 +325,8 @@ def main() -> None:
     if args.barrel:
         runs += [lambda hidden=hidden: run_barrel(n_dof=args.barrel_dof, hidden=hidden) for hidden in args.hidden]
         runs += [lambda: run_barrel(control=True, n_dof=args.barrel_dof)]
+        if args.ray:
+            runs += [lambda: run_barrel(n_dof=args.barrel_dof, hidden=args.hidden[0], ray=args.ray)]
     for run in runs:
         r = run()
         rows.append(r)
