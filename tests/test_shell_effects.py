@@ -173,21 +173,45 @@ def test_the_joints_and_seams_of_a_region_release_each_grid_once():
     Released twice, the second release cut the first's grid loose: a rotation of one grid
     mixed into the modes above 100 Hz and lowered them by up to 12 %."""
     from benchmarks import fuselage
-    from updating._candidates import augment, region_structures
-    from updating._effects import KINDS, Joint, Seam
+    from updating._candidates import _moved, augment, region_structures
+    from updating._effects import KINDS, Joint, Seam, _seam_lines
+    from updating._topology import masters
 
     model = jaxfem.build_model(read_bdf_text(fuselage.barrel_bdf(2500)))
     joints, seams = {n for j in Joint.candidates(model) for n in j.nodes}, Seam.candidates(model)
     both = sorted({n for s in seams for n in s.nodes if n in joints})
     region = [both[0], next(n for n in both[1:] if not any({both[0], n} <= set(s.nodes) for s in seams))]
     structures = region_structures(model, region, {}, KINDS, 4)
-    released = [n for s in structures if s.kind != "boundary_spring" for n in s.nodes]
-    assert set(region) <= set(released) and len(released) == len(set(released))
+    dep, lines = masters(model), _seam_lines(model)
+    released = [m for s in structures if s.kind != "boundary_spring" for m in _moved(s, model, dep, lines)]
+    assert set(region) <= {g for g, _ in released} and len(released) == len(set(released))
     f0 = np.asarray(jaxfem.frequencies_hz(jaxfem.modes(model, 26, solver="sparse")[0]))
     aug, _, stiffened = augment(model, [], structures, f0[6:])
     assert len(stiffened) == len(structures) >= 2
     f1 = np.asarray(jaxfem.frequencies_hz(jaxfem.modes(aug, 26, solver="sparse")[0]))
     assert np.max(np.abs(f1[6:] / f0[6:] - 1)) < 1e-3
+
+
+def test_a_frames_and_a_stringers_seams_crossing_at_a_hot_grid_are_both_offered():
+    """The hot grid where a frame and a stringer cross the skin: both seams are offered
+    (the best of each beam group first), each releasing its own beams there; a grid one
+    element from a scored grid takes 0.9 of its score (_dilated)."""
+    from benchmarks import fuselage
+    from updating._candidates import _dilated, neighbours, region_structures
+    from updating._effects import KINDS, Seam
+
+    model = jaxfem.build_model(read_bdf_text(fuselage.barrel_bdf(2500)))
+    frame, stringer = fuselage.PID_FRAME, fuselage.PID_STRINGER
+    lines: dict[int, set] = {}
+    for s in Seam.candidates(model):
+        lines.setdefault(s.pids[1], set()).update(s.nodes)
+    cross = min(g for g in lines[frame] & lines[stringer] if not any(g in v for p, v in lines.items()
+                                                                     if p not in (frame, stringer)))
+    near = _dilated(model, {cross: 1.0}, 0.9)
+    assert near.pop(cross) == 1.0 and near == dict.fromkeys(neighbours(model, cross), 0.9)
+    structures = region_structures(model, [cross], {cross: 1.0}, KINDS, 4)
+    beams = {s.pids[1] for s in structures if isinstance(s, Seam) and cross in s.line(model)}
+    assert beams == {frame, stringer}
 
 
 def test_a_seams_line_is_released_once_and_its_runs_are_masks_on_it():

@@ -21,7 +21,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxfem import Model
+from jaxfem import STRUCTURAL_BLOCKS, Model
 from jaxfem import _edit as edit
 
 from ._compiled import Compiled
@@ -188,6 +188,7 @@ def _baseline_columns(problem: Problem, theta, n_b: int) -> np.ndarray:
 # candidates by kind
 
 
+NEXT_GRID = 0.9  # a structure's score from a grid one element away, as a share of that grid's: its own grids first
 STIFF = 100.0  # a released rigid connection or support is held this many times stiffer than its reference
 
 
@@ -221,8 +222,13 @@ def localised_grids(model: Model, screen: Screen, node_scores: dict[int, float],
 
 
 def region_structures(model: Model, region: list[int], node_score: dict, kinds, n: int) -> list[AbstractEffect]:
-    """Joints (RBE2 groups, grids shared by two groups), seams and supports with a grid in the
-    localised ``region`` or scoring high there, best first, at most ``n``. :func:`augment`
+    """Joints (RBE2 groups, grids shared by two groups), seams and supports at or next to
+    the localised ``region`` (one element away: the expanded shapes of sparse sensors put
+    a connection's error on the grids about it; such a grid's score counts
+    :data:`NEXT_GRID` of its own), or scoring high there, at most ``n``:
+    the best of each kind and group (a seam's beams, a joint's released group) first, then
+    the rest, best first (a frame's seam and a stringer's crossing it score alike; on the
+    33k barrel the stringers' seams through a hot grid took every place). :func:`augment`
     releases them all at once, so a joint or seam that releases a group at a grid where
     a better one does (a seam: along its whole line; :func:`_moved`) is left out, and so
     is a joint between a shell and a beam group at a grid of their seam, which a seam
@@ -231,11 +237,23 @@ def region_structures(model: Model, region: list[int], node_score: dict, kinds, 
     on_seams = {(g, frozenset(s.pids)) for s in effects if isinstance(s, Seam) for g in s.nodes}
     effects = [e for e in effects if not (isinstance(e, Joint) and len(e.nodes) == 1
                                           and (e.nodes[0], frozenset(e.pids)) in on_seams)]  # a seam of one grid
-    inside, dep, lines = set(region), masters(model), _seam_lines(model)
-    score = {e: (any(k in inside or dep.get(k) in inside for k in e.nodes), max(node_score.get(k, 0.0) for k in e.nodes))
-             for e in effects}
+    dep, lines = masters(model), _seam_lines(model)
+    near = _dilated(model, node_score, NEXT_GRID)
+    inside = _dilated(model, dict.fromkeys(region, 1.0), NEXT_GRID)  # 1 at a region grid, 0.9 one element away
+    at = lambda k: dep.get(k, k)  # noqa: E731  an RBE2-dependent grid scores as its master
+    best = lambda values, e: max(max(values.get(k, 0.0), values.get(at(k), 0.0)) for k in e.nodes)  # noqa: E731
+    score = {e: (best(inside, e) > 0, best(near, e), best(inside, e)) for e in effects}
+    ranked = sorted((e for e in effects if score[e][0] or score[e][1] > 0),
+                    key=lambda e: (not score[e][0], -score[e][1], -score[e][2]))
+    groups, firsts = set(), []
+    for e in ranked:
+        key = e.kind, tuple(getattr(e, "pids", ()))[1:]
+        if key not in groups:
+            groups.add(key)
+            firsts.append(e)
+    first = set(firsts)
     chosen, released = [], {}
-    for e in sorted((e for e in effects if score[e][0] or score[e][1] > 0), key=lambda e: (not score[e][0], -score[e][1])):
+    for e in firsts + [e for e in ranked if e not in first]:
         if len(chosen) == n:
             break
         if e.kind != BoundarySpring.kind:  # a group released twice at a grid would be held by the second release only
@@ -246,6 +264,25 @@ def region_structures(model: Model, region: list[int], node_score: dict, kinds, 
                 released.setdefault(g, set()).add(p)
         chosen.append(e)
     return chosen
+
+
+def _dilated(model: Model, score: dict, weight: float) -> dict[int, float]:
+    """Each grid's ``score`` (grid id → value), or ``weight`` × the best on a grid one
+    structural element away if that is higher."""
+    rows = {int(g): i for i, g in enumerate(np.asarray(model.node_ids))}
+    value = np.zeros(len(rows))
+    for g, v in score.items():
+        if int(g) in rows:
+            value[rows[int(g)]] = v
+    out = value.copy()
+    for name in STRUCTURAL_BLOCKS:
+        nodes = np.asarray(getattr(model, name).nodes)
+        if not nodes.size:
+            continue
+        valid = nodes >= 0
+        best = weight * np.where(valid, value[np.maximum(nodes, 0)], -np.inf).max(axis=1)
+        np.maximum.at(out, nodes[valid], np.broadcast_to(best[:, None], nodes.shape)[valid])
+    return {int(g): float(v) for g, v in zip(np.asarray(model.node_ids), out) if v > 0}
 
 
 def _moved(e: AbstractEffect, model: Model, dep: dict, lines: dict) -> set[tuple[int, int | None]]:

@@ -1035,7 +1035,8 @@ def parse_effect(spec: str) -> AbstractEffect:
     ``boundary_spring:node=1``,
     ``frequency_dependent_stiffness:pid=41``, ``delamination:node=1234;radius=0.03``,
     ``patch_stiffness:node=1234;radius=0.05;part=bending`` (radius in m),
-    ``seam:node=1001-1005;pids=101,201``."""
+    ``seam:node=1001-1005;pids=101,201``, ``damping:eids=6-8`` (a loss factor, fitted by
+    :func:`updating.diagnose_damping`)."""
     kind, _, target = spec.partition(":")
     if kind not in KINDS or not target:
         raise ValueError(f"effect {spec!r}: write KIND:TARGET with KIND one of {KINDS}, "
