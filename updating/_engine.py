@@ -199,7 +199,13 @@ def run(theta0: Float[Array, " p"], problem: Problem, eigensolver: AbstractEigen
                                History(*row))
         if progress is not None:
             jax.lax.cond(write, lambda: emit(slot, row), lambda: None)
-        converged = (moved & (change <= settings.tolerance)) | (opt.terminate & ~moved)
+        # converged: the step taken and the undamped Gauss–Newton step from its end both within the
+        # tolerance; a Levenberg–Marquardt step is damped (λ = 1 at first) and where JᵀJ ≪ 1 (a
+        # softened seam's stiffness) it is short however far the minimum lies
+        gn = jnp.linalg.lstsq(opt.f_info.jac.as_matrix(), -opt.f_info.residual)[0]
+        remaining = jnp.max(jnp.abs(gn) if settings.relative else jnp.abs(jnp.expm1(new + gn) - jnp.expm1(new)))
+        converged = (moved & (change <= settings.tolerance) & (remaining <= settings.tolerance)) \
+            | (opt.terminate & ~moved)
         steps = s.steps + 1
         done = converged | (accepted >= settings.max_iterations) | (steps >= settings.max_steps) \
             | ~jnp.all(jnp.isfinite(new)) | skip
