@@ -19,7 +19,8 @@ changed model are sought in the span of
   nearly equal columns, which the M-orthonormalisation drops (a seam softened e⁻¹²
   left the reduced eigenvalues unchanged); both sets together widened the bases and ran
   the 33k diagnosis past 10 minutes. A candidate
-  touching more than ``ATTACH_MAX`` DoFs (a whole group) gets the first-order columns.
+  touching more than ``ATTACH_MAX`` DoFs (a whole group; twice as many for held springs,
+  whose change load is one column from either end) gets the first-order columns.
 
 The basis is M-orthonormalised. The reduced eigenvalues are Rayleigh quotients, so their
 error is of second order in the shapes' error. The baseline's part is made once.
@@ -195,10 +196,10 @@ class Bases:
         linear = pool is None and self.n_b == 0 and ext.scales_only()
         touched = np.flatnonzero(np.asarray(self._touched(theta, p, tangents, pool)))
         M = self._matrices(theta, p, pool)[1].tocsr() + (self._rest[1] if pool is not None else 0)
-        if len(touched) <= ATTACH_MAX:
+        if len(touched) <= ATTACH_MAX * (2 if held else 1):  # a held spring's load is one column from either end
             unit = np.zeros((len(self.phi), len(touched)))
             unit[touched, np.arange(len(touched))] = 1.0
-            static = np.asarray(self._solve(self._change_loads(theta, p, tangents, unit) if held else unit))
+            static = np.asarray(self._solve(_distinct(self._change_loads(theta, p, tangents, unit)) if held else unit))
             dynamic = np.asarray(self._solve(M @ static))
             own = np.concatenate([static, dynamic], axis=1)
         else:
@@ -223,6 +224,14 @@ def _width(columns: int) -> int:
     while r < columns:
         r = -(-int(r * growth) // multiple) * multiple
     return r
+
+
+def _distinct(loads: np.ndarray) -> np.ndarray:
+    """The columns of ``loads`` that differ beyond sign and scale: a spring's change load
+    k (e_a − e_b) comes from either of its ends."""
+    peak = loads[np.argmax(np.abs(loads), axis=0), np.arange(loads.shape[1])]
+    _, keep = np.unique(np.round(loads / peak, 12).T, axis=0, return_index=True)
+    return loads[:, np.sort(keep)]
 
 
 def _orthonormal(V: np.ndarray, G: np.ndarray) -> np.ndarray:
