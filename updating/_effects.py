@@ -642,7 +642,7 @@ class Joint(AbstractAddedElements):
 
 
 SEAM_GRIDS = 5  # grids per seam candidate: a seam line is offered in runs of this many
-SEAM_LENGTHS = (3, 5, 8, 13, 21)  # seam ladder, in grids: a fitted seam is refined along its line and in length
+SEAM_LENGTHS = (3, 5, 8, 13, 21, 34)  # seam ladder, in grids: a fitted seam is refined along its line and in length
 
 
 class Seam(AbstractAddedElements):
