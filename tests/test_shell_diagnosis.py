@@ -46,7 +46,7 @@ def _row(hidden: str, control: bool = False) -> dict:
     return json.loads(done.stdout.splitlines()[-1])
 
 
-@pytest.mark.slow(seconds=450)  # one thread, this and the control side by side on 2 cores (398 s and 439 s, measured)
+@pytest.mark.slow(seconds=600)  # one thread, beside the seam on 2 cores: 581 s, measured (398 s before fits ran to the Gauss–Newton step's tolerance)
 def test_missing_payload_ranks_first_at_its_grid():
     row = _row("box")
     assert row["right"], row["verdict"]
@@ -60,7 +60,7 @@ def test_the_barrels_control_claims_nothing():
     assert row["right"] and row["outcome"] == "none_needed", row["verdict"]
 
 
-@pytest.mark.slow(seconds=600)  # one thread: 593 s, measured
+@pytest.mark.slow(seconds=700)  # one thread: 679 s, measured
 def test_a_loose_seam_ranks_first_along_its_frame():
     """A frame detached from the skin over 90° of the crown (7 grids; translations held by
     1 kN/mm per metre, rotations free; :func:`benchmarks.perf_diagnose.loose_seam`): a seam

@@ -226,7 +226,7 @@ def test_a_seams_line_is_released_once_and_its_runs_are_masks_on_it():
     import equinox as eqx
 
     from benchmarks import fuselage
-    from updating._candidates import STIFF, augment, structural_candidate
+    from updating._candidates import STIFF, augment, seam_onward, structural_candidate
     from updating._effects import SEAM_GRIDS, SEAM_LENGTHS, Seam
 
     model = jaxfem.build_model(read_bdf_text(fuselage.barrel_bdf(2500)))
@@ -253,6 +253,13 @@ def test_a_seams_line_is_released_once_and_its_runs_are_masks_on_it():
     run = released.seam(released.effect.run(line, start + 1, 8))
     c = structural_candidate(aug, run, theta0=soft)
     assert c.scan is None and c.released.line == line and c.reference.nodes == line[start + 1:start + 9]
+    a = structural_candidate(aug, released.seam(seam), theta0=soft)  # a fine move, an end out: made once more
+    b = structural_candidate(aug, released.seam(released.effect.run(line, start - 1, SEAM_GRIDS + 1)), theta0=soft)
+    a.result, b.result = {"theta": soft}, {"theta": soft + 1}
+    ahead = seam_onward(aug, a, b)
+    assert ahead.reference.nodes == line[start - 2:start + SEAM_GRIDS] and np.allclose(ahead.theta0, soft + 1)
+    assert seam_onward(aug, b, a) is not None and seam_onward(aug, a, replace(b, reference=released.effect.run(
+        line, 0, len(line)))) is None  # past the line's ends
     scale = {**{e: np.exp(soft[0]) for e in run.trans}, **{e: np.exp(soft[1]) for e in run.rot}}
     b = aug.bushes
     masked = eqx.tree_at(lambda m: m.bushes.k_scale, aug,
@@ -263,3 +270,22 @@ def test_a_seams_line_is_released_once_and_its_runs_are_masks_on_it():
     assert np.max(np.abs(f_alone / f0[6:] - 1)) > 0.002  # the run released and softened moves the modes (0.4 %)
     np.testing.assert_allclose(f_masked, f_alone, rtol=2e-4)  # the rest of the line held STIFF × reference
     assert c.reference.k_trans == pytest.approx(replace(seam).at_reference(model, f0[6:]).k_trans * STIFF, rel=1e-12)
+
+
+def test_a_climb_makes_its_last_move_again_before_asking_every_neighbour():
+    """``_climb`` with ``onward``: down a valley (cost (x − 7)², from x = 2) the
+    neighbours are asked at the start and at the bottom only."""
+    from types import SimpleNamespace
+
+    from updating._diagnose import _climb
+
+    at = {x: SimpleNamespace(x=x, result={"cost": float((x - 7) ** 2)}) for x in range(12)}
+    asked = []
+
+    def near(c):
+        asked.append(c.x)
+        return [at[x] for x in (c.x - 1, c.x + 1) if x in at]
+
+    moves = _climb(at[2], near, lambda a, b: at.get(2 * b.x - a.x))
+    assert [b.x for _, b in moves] == [3, 4, 5, 6, 7] and asked == [2, 7]
+    assert [b.x for _, b in _climb(at[2], near)] == [3, 4, 5, 6, 7]  # without: every step asks

@@ -502,6 +502,17 @@ def seam_neighbours(aug: Model, c: Candidate, coarse: bool = False) -> list[Cand
             for s in c.reference.neighbours(r.line, coarse)]
 
 
+def seam_onward(aug: Model, a: Candidate, b: Candidate) -> Candidate | None:
+    """The seam move a → b on their released line (:func:`seam_neighbours`) made once more
+    from b, to start at b's fitted values; None where it leaves the line."""
+    line, theta = b.released.line, b.result["theta"]
+    start, n = line.index(b.reference.nodes[0]), len(b.reference.nodes)
+    start, n = 2 * start - line.index(a.reference.nodes[0]), 2 * n - len(a.reference.nodes)
+    if start < 0 or n < 2 or start + n > len(line):
+        return None
+    return structural_candidate(aug, b.released.seam(b.reference.run(line, start, n)), theta[len(theta) - len(b.theta0):])
+
+
 def shortlist(cands: list[Candidate], best: int, per_kind: int, kinds, within: float) -> list[Candidate]:
     """The ``best`` screened candidates overall, and of each kind those screening at least
     ``within`` of the kind's best, at most ``per_kind``."""

@@ -67,6 +67,7 @@ from ._candidates import (
     pool,
     region_structures,
     seam_neighbours,
+    seam_onward,
     shell_grids,
     shortlist,
     structural_candidates,
@@ -391,11 +392,18 @@ def _threaded(fn, jobs: list, threads: int | None):
         yield from pool.map(fn, jobs)
 
 
-def _climb(best: Candidate, fitted_neighbours) -> list[tuple[Candidate, Candidate]]:
+def _climb(best: Candidate, fitted_neighbours, onward=None) -> list[tuple[Candidate, Candidate]]:
     """Move from ``best`` to its best-fitting neighbour while that fits better;
-    ``fitted_neighbours(c)``: the neighbours of ``c`` to compare, fitted. The moves made."""
+    ``fitted_neighbours(c)``: the neighbours of ``c`` to compare, fitted; ``onward(a, b)``:
+    the move a → b made once more, fitted (None where it cannot be), tried first after
+    each move (a seam growing grid by grid takes one fit a step, not six). The moves made."""
     moves = []
     while True:
+        ahead = onward(*moves[-1]) if moves and onward is not None else None
+        if ahead is not None and ahead.result["cost"] < best.result["cost"]:
+            moves.append((best, ahead))
+            best = ahead
+            continue
         step = min(fitted_neighbours(best), key=lambda c: c.result["cost"], default=best)
         if step.result["cost"] >= best.result["cost"]:
             return moves
@@ -474,29 +482,34 @@ def _refine_seams(fitted, aug: Model, short: list[Candidate], base: dict) -> lis
     """Hill-climb of the best fitted seam that takes at least half the cost reduction of
     the best candidate (as a patch, :func:`_refine_patches`) on its released line
     (:meth:`~updating._effects.Seam.neighbours`): first in coarse moves (half its length
-    along, the length ladder), then in fine ones (one grid along, each end out or in),
-    the neighbours fitted, moving while one fits better. Fits join ``short``."""
+    along, the length ladder), then in fine ones (one grid along, each end out or in; a
+    fine move made once more first), the neighbours fitted, moving while one fits better.
+    Fits join ``short``."""
     done = {(c.reference.pids, c.reference.nodes): c for c in short
             if c.reference.kind == Seam.kind and c.released is not None}
 
+    def known(c: Candidate, i: int, n: int) -> Candidate:
+        key = c.reference.pids, c.reference.nodes
+        if key not in done:
+            c.result = fitted(c, c.theta0, i, n)
+            done[key] = c
+            short.append(c)
+        return done[key]
+
     def fitted_neighbours(best: Candidate, coarse: bool) -> list[Candidate]:
-        out = []
         near = seam_neighbours(aug, best, coarse)
-        for i, c in enumerate(near, 1):
-            key = c.reference.pids, c.reference.nodes
-            if key not in done:
-                c.result = fitted(c, c.theta0, i, len(near))
-                done[key] = c
-                short.append(c)
-            out.append(done[key])
-        return out
+        return [known(c, i, len(near)) for i, c in enumerate(near, 1)]
+
+    def onward(a: Candidate, b: Candidate) -> Candidate | None:
+        ahead = seam_onward(aug, a, b)
+        return None if ahead is None else known(ahead, 1, 1)
 
     bar = _climb_bar(short, base)
     best = min((c for c in done.values() if c.result["cost"] < bar), key=lambda c: c.result["cost"], default=None)
     if best is None:
         return []
     moves = _climb(best, lambda c: fitted_neighbours(c, coarse=True))
-    return moves + _climb(moves[-1][1] if moves else best, lambda c: fitted_neighbours(c, coarse=False))
+    return moves + _climb(moves[-1][1] if moves else best, lambda c: fitted_neighbours(c, coarse=False), onward)
 
 
 def _climb_bar(short: list[Candidate], base: dict) -> float:
