@@ -55,6 +55,20 @@ def test_run_converges_and_keeps_its_history(frame):
     np.testing.assert_allclose(np.asarray(h.freq_dev[n]), 0.0, atol=1e-9)
 
 
+def test_a_damped_step_that_is_short_is_not_convergence(frame):
+    """Levenberg–Marquardt damps its first steps (λ = 1): with residuals 1000× smaller
+    (JᵀJ ~ 1e-6) the first step moves α by ~1e-7, within any tolerance; the fit must
+    still go on to the truth, for the Gauss–Newton step from there is not small."""
+    import dataclasses
+
+    model, pset, truth, sensors = frame
+    problem = build_problem(model, simulate_test(truth, sensors, 6), pset)
+    small = dataclasses.replace(problem, lam_weight=1e-3 * jnp.ones_like(problem.lam_weight), use_phi=False)
+    state = Compiled(run)(jnp.zeros(3), small, Direct(), jnp.zeros(0), Settings(False, 1e-3, 50, 50, relative=True))
+    assert bool(state.converged) and int(state.accepted) > 3
+    np.testing.assert_allclose(np.expm1(state.theta), ALPHA, atol=2e-3)
+
+
 def test_the_loop_keeps_the_jacobian_at_its_theta(frame):
     """The Jacobian the loop returns is that of a fresh linearisation at its θ: at the
     last accepted iterate of a Levenberg–Marquardt fit stopped early, and at θ₀ when the

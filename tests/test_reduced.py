@@ -170,3 +170,14 @@ def test_candidate_fits_on_two_threads_equal_one_thread(joint):
         np.testing.assert_array_equal(t0, u0)
         np.testing.assert_allclose(b["theta"], a["theta"], rtol=1e-9, atol=1e-12)
         np.testing.assert_allclose(b["cost"], a["cost"], rtol=1e-9)
+
+
+def test_a_springs_change_loads_are_kept_once():
+    """A spring's change load k (e_a − e_b) comes from either end: ``_distinct`` keeps one
+    column per direction, whatever its sign and scale, and keeps different ones."""
+    from updating._reduced import _distinct
+
+    e = np.eye(6)
+    a, b, c = 2.0 * (e[0] - e[3]), 5.0 * (e[1] - e[4]), e[2] + 0.5 * e[5]
+    loads = np.stack([a, -a, b, 3.0 * c, -b, 0.1 * a, c], axis=1)
+    np.testing.assert_array_equal(_distinct(loads), loads[:, [0, 2, 3]])
