@@ -3,17 +3,18 @@
 import os
 
 # Several host devices for the sharding tests; no LLVM optimisation of the compiled code
-# and XLA's older fusion emitters, which compile faster: compilation dominates the suite's
-# time (measured 22 % less wall time at -O0; a diagnosis of the 102-DoF frame then
-# compiled in 28 s instead of 44 s without the new emitters; results equal to rounding).
-# Under xdist (one worker per core) each worker computes on one thread: two workers'
-# thread pools oversubscribe the cores (tests/test_diagnose.py on 2 cores: 857 → 738
-# worker-seconds). Must be set before JAX and the BLAS libraries start.
+# and XLA's older fusion emitters (FAST_COMPILE), which compile faster: compilation
+# dominates the suite's time (79 % of the non-slow tests' worker-seconds, 2026-11-28;
+# 22 % less wall time at -O0; a diagnosis of the 102-DoF frame then compiled in 28 s
+# instead of 44 s without the new emitters; results equal to rounding). Under xdist (one
+# worker per core) each worker computes on one thread: two workers' thread pools
+# oversubscribe the cores (tests/test_diagnose.py on 2 cores: 857 → 738 worker-seconds).
+# Must be set before JAX and the BLAS libraries start.
+FAST_COMPILE = "--xla_backend_optimization_level=0 --xla_cpu_use_fusion_emitters=false"
 ONE_THREAD = {"XLA_FLAGS": "--xla_cpu_multi_thread_eigen=false",
               "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 WORKER = "PYTEST_XDIST_WORKER" in os.environ
-os.environ.setdefault("XLA_FLAGS", "--xla_force_host_platform_device_count=4 --xla_backend_optimization_level=0 "
-                      "--xla_cpu_use_fusion_emitters=false"
+os.environ.setdefault("XLA_FLAGS", f"--xla_force_host_platform_device_count=4 {FAST_COMPILE}"
                       + (" " + ONE_THREAD["XLA_FLAGS"] if WORKER else ""))
 if WORKER:
     for var, value in ONE_THREAD.items():

@@ -24,18 +24,19 @@ import sys
 from pathlib import Path
 
 import pytest
-from conftest import ONE_THREAD
+from conftest import FAST_COMPILE, ONE_THREAD
 
 BARREL_DOF = 2_500  # above DiagnoseOptions.reduce_above: the candidates are fitted on reduced models
 NOISE_F = 0.001  # the barrel's frequency noise (relative σ of f)
 
 
 def _row(hidden: str, control: bool = False) -> dict:
-    """The barrel's row (``run_barrel``) in a process of its own: at XLA's default
-    optimisation (the suite's -O0, conftest.py, doubles the run time of these diagnoses,
-    which run long more than they compile), on one thread (beside the other test worker on
-    2 cores). The payload and the control are two tests, so that two workers share them."""
-    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"} | ONE_THREAD
+    """The barrel's row (``run_barrel``) in a process of its own, on one thread (beside the
+    other test worker on 2 cores) and with the suite's compile flags (conftest.py: the
+    payload's diagnosis took 298 s with them, 370 s at XLA's default optimisation, alone,
+    2026-11-28: compiling and tracing were 70 % of it). The payload and the control are two
+    tests, so that two workers share them."""
+    env = os.environ | ONE_THREAD | {"XLA_FLAGS": f"{FAST_COMPILE} {ONE_THREAD['XLA_FLAGS']}"}
     code = ("import json; from benchmarks.perf_diagnose import run_barrel; "
             f"print(json.dumps(run_barrel(n_dof={BARREL_DOF}, eigensolver='sparse', hidden={hidden!r}, "
             f"control={control}), "
@@ -46,7 +47,7 @@ def _row(hidden: str, control: bool = False) -> dict:
     return json.loads(done.stdout.splitlines()[-1])
 
 
-@pytest.mark.slow(seconds=600)  # one thread, beside the seam on 2 cores: 581 s, measured (398 s before fits ran to the Gauss–Newton step's tolerance)
+@pytest.mark.slow(seconds=405)  # one thread, beside the seam on 2 cores: 403 s, measured 2026-11-28
 def test_missing_payload_ranks_first_at_its_grid():
     row = _row("box")
     assert row["right"], row["verdict"]
@@ -54,13 +55,13 @@ def test_missing_payload_ranks_first_at_its_grid():
     assert row["heldout_after_pct"] < min(row["heldout_before_pct"], 2 * 100 * NOISE_F), row
 
 
-@pytest.mark.slow(seconds=440)
+@pytest.mark.slow(seconds=265)  # beside the payload: 263 s, measured 2026-11-28
 def test_the_barrels_control_claims_nothing():
     row = _row("box", control=True)
     assert row["right"] and row["outcome"] == "none_needed", row["verdict"]
 
 
-@pytest.mark.slow(seconds=700)  # one thread: 679 s, measured
+@pytest.mark.slow(seconds=535)  # one thread, beside the payload: 534 s, measured 2026-11-28
 def test_a_loose_seam_ranks_first_along_its_frame():
     """A frame detached from the skin over 90° of the crown (7 grids; translations held by
     1 kN/mm per metre, rotations free; :func:`benchmarks.perf_diagnose.loose_seam`): a seam
