@@ -1,5 +1,7 @@
 """The updating engine, its least-squares kernel and the measurement simulation."""
 
+import dataclasses
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -59,8 +61,6 @@ def test_a_damped_step_that_is_short_is_not_convergence(frame):
     """Levenberg–Marquardt damps its first steps (λ = 1): with residuals 1000× smaller
     (JᵀJ ~ 1e-6) the first step moves α by ~1e-7, within any tolerance; the fit must
     still go on to the truth, for the Gauss–Newton step from there is not small."""
-    import dataclasses
-
     model, pset, truth, sensors = frame
     problem = build_problem(model, simulate_test(truth, sensors, 6), pset)
     small = dataclasses.replace(problem, lam_weight=1e-3 * jnp.ones_like(problem.lam_weight), use_phi=False)
