@@ -16,7 +16,7 @@ from jaxfem.io import read_bdf_text
 from test_diagnose import measure
 from updating import Options, Parameter, ParameterSet
 from updating._candidates import augment, region_structures, structural_candidates
-from updating._diagnose import DiagnoseOptions
+from updating._diagnose import FULL_MODEL_TOL, DiagnoseOptions, _on_full_model
 from updating._effects import Effect, at_reference
 from updating._evidence import Fits, fit, with_extension
 from updating._extension import extension
@@ -78,6 +78,24 @@ def test_reduced_fit_lands_where_the_full_one_does(joint):
     reduced = fit(fits, problem, c.ext, np.array([0.0, -4.6]), red)
     assert np.allclose(reduced["theta"], full["theta"], atol=1e-3)
     assert abs(reduced["cost"] / full["cost"] - 1) < 1e-3
+
+
+def test_a_reduced_fit_is_checked_on_the_full_model(joint):
+    """The diagnosis reports the full model's values at a reduced fit's θ, and fits again
+    on the full model only where its cost there differs by more than FULL_MODEL_TOL χ²."""
+    problem, fits, c, red, _ = joint
+    c.result = fit(fits, problem, c.ext, np.array([0.0, -4.6]), red)
+    full = fit(fits, problem, c.ext, c.result["theta"], skip=True)
+    said = []
+    gap = abs(full["cost"] - c.result["cost"])
+    assert gap > 0
+    kept = _on_full_model(fits, problem, c, gap / FULL_MODEL_TOL, said.append)  # the gap: one unit of χ²
+    assert said == [] and np.array_equal(kept["theta"], c.result["theta"])
+    assert kept["cost"] == full["cost"] and np.array_equal(kept["jac"], full["jac"])
+    again = _on_full_model(fits, problem, c, gap / FULL_MODEL_TOL / 10, said.append)  # ten units
+    assert len(said) == 1 and "fitted again" in said[0]
+    direct = fit(fits, problem, c.ext, np.array([0.0, -4.6]))  # on the full model from the start
+    assert again["cost"] <= full["cost"] and abs(again["cost"] / direct["cost"] - 1) < 1e-4
 
 
 
