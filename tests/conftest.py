@@ -1,6 +1,9 @@
 """Strict test configuration: float64, strict dtype promotion, several CPU devices."""
 
+import atexit
 import os
+import shutil
+import tempfile
 
 # Several host devices for the sharding tests; no LLVM optimisation of the compiled code
 # and XLA's older fusion emitters (FAST_COMPILE), which compile faster: compilation
@@ -19,6 +22,14 @@ os.environ.setdefault("XLA_FLAGS", f"--xla_force_host_platform_device_count=4 {F
 if WORKER:
     for var, value in ONE_THREAD.items():
         os.environ.setdefault(var, value)
+# One persistent compilation cache for the run (this process, its xdist workers and the
+# barrel tests' subprocesses inherit it): a program that one test compiled is loaded, not
+# compiled again, by the next test that builds the same one (each diagnosis, update and
+# study compiles its own functions, see updating._compiled). Removed when the run ends.
+if not WORKER and "JAX_COMPILATION_CACHE_DIR" not in os.environ:
+    os.environ["JAX_COMPILATION_CACHE_DIR"] = tempfile.mkdtemp(prefix="jaxfem-tests-xla-")
+    os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.1")
+    atexit.register(shutil.rmtree, os.environ["JAX_COMPILATION_CACHE_DIR"], ignore_errors=True)
 
 import jax  # noqa: E402
 import pytest  # noqa: E402
