@@ -89,14 +89,13 @@ def test_a_reduced_fit_is_checked_on_the_full_model(joint):
     said = []
     gap = abs(full["cost"] - c.result["cost"])
     assert gap > 0
-    kept = _on_full_model(fits, problem, c, gap / FULL_MODEL_TOL, said.append)  # the gap: one unit of χ²
+    kept = _on_full_model(fits, problem, c, 2 * gap / FULL_MODEL_TOL, said.append)  # the gap: half the tolerance
     assert said == [] and np.array_equal(kept["theta"], c.result["theta"])
     assert kept["cost"] == full["cost"] and np.array_equal(kept["jac"], full["jac"])
-    again = _on_full_model(fits, problem, c, gap / FULL_MODEL_TOL / 10, said.append)  # ten units
+    again = _on_full_model(fits, problem, c, gap / FULL_MODEL_TOL / 10, said.append)  # ten times the tolerance
     assert len(said) == 1 and "fitted again" in said[0]
     direct = fit(fits, problem, c.ext, np.array([0.0, -4.6]))  # on the full model from the start
     assert again["cost"] <= full["cost"] and abs(again["cost"] / direct["cost"] - 1) < 1e-4
-
 
 
 def test_pool_assembles_only_what_changes(joint):
