@@ -219,8 +219,8 @@ def test_a_seams_line_is_released_once_and_its_runs_are_masks_on_it():
     (:func:`updating._candidates.augment`), held stiff; a run of the line softened through its
     own grids' springs (a mask) gives the frequencies of the nominal model with only that
     run released (Seam.apply), and the runs next to it are one grid along the line either
-    way, each end out or in, and (coarse) half its length along and the next lengths of the
-    ladder about the same centre."""
+    way, each end out or in, and (coarse) half its length along, each end a quarter of it
+    out or in, and the next lengths of the ladder about the same centre."""
     from dataclasses import replace
 
     import equinox as eqx
@@ -241,7 +241,11 @@ def test_a_seams_line_is_released_once_and_its_runs_are_masks_on_it():
                     line[start + 1:start + 5], line[start:start + 4]]  # an end in
     coarse = [n.nodes for n in seam.neighbours(line, coarse=True)]
     assert coarse[:2] == [line[max(0, start - 2):max(0, start - 2) + 5], line[start + 2:start + 7]]  # half along
-    assert [len(n) for n in coarse[2:]] == [3, 8] and all(seam.nodes[2] in n for n in coarse[2:])  # the ladder
+    assert coarse[2:6] == near[2:]  # an end a quarter of its length (one grid) out or in
+    assert [len(n) for n in coarse[6:]] == [3, 8] and all(seam.nodes[2] in n for n in coarse[6:])  # the ladder
+    long = seam.run(line, start, 9)
+    assert [n.nodes for n in long.neighbours(line, coarse=True)][2:6] == [  # an end two grids out or in
+        line[start - 2:start + 9], line[start:start + 11], line[start + 2:start + 9], line[start:start + 7]]
 
     f0 = np.asarray(jaxfem.frequencies_hz(jaxfem.modes(model, 20, solver="sparse")[0]))
     aug, _, (released,) = augment(model, [], [seam], f0[6:])

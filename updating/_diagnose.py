@@ -501,9 +501,9 @@ def _refine_seams(fitted, aug: Model, short: list[Candidate], base: dict) -> lis
     """Hill-climb of the best fitted seam that takes at least half the cost reduction of
     the best candidate (as a patch, :func:`_refine_patches`) on its released line
     (:meth:`~updating._effects.Seam.neighbours`): first in coarse moves (half its length
-    along, the length ladder), then in fine ones (one grid along, each end out or in; a
-    fine move made once more first), the neighbours fitted, moving while one fits better.
-    Fits join ``short``."""
+    along, each end a quarter of it out or in, the length ladder), then in fine ones (one
+    grid along, each end out or in), the last move made once more first, the neighbours
+    fitted, moving while one fits better. Fits join ``short``."""
     done = {(c.reference.pids, c.reference.nodes): c for c in short
             if c.reference.kind == Seam.kind and c.released is not None}
 
@@ -527,7 +527,7 @@ def _refine_seams(fitted, aug: Model, short: list[Candidate], base: dict) -> lis
     best = min((c for c in done.values() if c.result["cost"] < bar), key=lambda c: c.result["cost"], default=None)
     if best is None:
         return []
-    moves = _climb(best, lambda c: fitted_neighbours(c, coarse=True))
+    moves = _climb(best, lambda c: fitted_neighbours(c, coarse=True), onward)
     return moves + _climb(moves[-1][1] if moves else best, lambda c: fitted_neighbours(c, coarse=False), onward)
 
 

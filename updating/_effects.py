@@ -695,16 +695,17 @@ class Seam(AbstractAddedElements):
 
     def neighbours(self, line: tuple[int, ...], coarse: bool = False) -> list[Seam]:
         """The seams next to this one on its ``line``: one grid along it either way and
-        each end one grid out or in; ``coarse``: half its length along either way and the
-        next length of :data:`SEAM_LENGTHS` up and down about the same centre."""
+        each end one grid out or in; ``coarse``: half its length along either way, each
+        end a quarter of its length out or in, and the next length of :data:`SEAM_LENGTHS`
+        up and down about the same centre."""
         start, n = line.index(self.nodes[0]), len(self.nodes)
-        if coarse:
+        along, d = (max(1, n // 2), max(1, n // 4)) if coarse else (1, 1)
+        runs = [(start - along, n), (start + along, n),  # along the line
+                (start - d, n + d), (start, n + d), (start + d, n - d), (start, n - d)]  # an end out or in
+        if coarse:  # the ladder, about the same centre
             step = int(np.argmin(np.abs(np.asarray(SEAM_LENGTHS) - n)))
-            runs = [(start - max(1, n // 2), n), (start + max(1, n // 2), n)]
             runs += [(start + n // 2 - SEAM_LENGTHS[i] // 2, SEAM_LENGTHS[i]) for i in (step - 1, step + 1)
                      if 0 <= i < len(SEAM_LENGTHS)]
-        else:
-            runs = [(start - 1, n), (start + 1, n), (start - 1, n + 1), (start, n + 1), (start + 1, n - 1), (start, n - 1)]
         runs = [(int(np.clip(s, 0, len(line) - m)), m) for s, m in runs if 2 <= m <= len(line)]
         return [self.run(line, s, m) for s, m in dict.fromkeys(runs) if (s, m) != (start, n)]
 
