@@ -198,3 +198,31 @@ def test_a_springs_change_loads_are_kept_once():
     a, b, c = 2.0 * (e[0] - e[3]), 5.0 * (e[1] - e[4]), e[2] + 0.5 * e[5]
     loads = np.stack([a, -a, b, 3.0 * c, -b, 0.1 * a, c], axis=1)
     np.testing.assert_array_equal(_distinct(loads), loads[:, [0, 2, 3]])
+
+
+def test_padding_leaves_close_modes_their_own_derivatives():
+    """A reduced problem's padding columns become modes just above its spectrum
+    (``updating._eigensolvers.padded``), not 1e3× its stiffest DoF: modes 1 % apart keep
+    their own derivatives (jaxfem.eigh groups eigenvalues within 1e3·ε·max|λ|; at the old
+    padding, with a spring held stiff in the basis, the pair's derivatives were averaged)."""
+    from updating._eigensolvers import padded
+
+    padding = jnp.asarray([False, False, False, False, True, True])
+
+    def lam(t, old=False):  # a stiff spring's DoF (1e12) beside two modes 1 % apart, one moved by t
+        kr = jnp.diag(jnp.stack([1e4 * jnp.exp(t), 1.01e4, 5e4, 1e12, 0.0, 0.0]))
+        mr = jnp.diag(jnp.asarray([1.0, 1.0, 1.0, 1.0, 0.0, 0.0]))
+        if old:
+            top = 1e3 * 1e12 + 1.0
+            kr, mr = kr + jnp.diag(jnp.where(padding, top, 0.0)), mr + jnp.diag(padding.astype(mr.dtype))
+        else:
+            kr, mr = padded(kr, mr, padding)
+        return jaxfem.eigh(kr, mr, 3)[0]
+
+    lam0 = np.asarray(lam(0.0))
+    np.testing.assert_allclose(lam0, [1e4, 1.01e4, 5e4], rtol=1e-12)
+    np.testing.assert_allclose(np.asarray(jax.jacfwd(lam)(0.0)), [1e4, 0.0, 0.0], atol=1e-6 * 1e4)
+    assert np.asarray(jax.jacfwd(lambda t: lam(t, old=True))(0.0))[1] > 1e3  # the old padding: averaged
+    kr, mr = padded(jnp.diag(jnp.asarray([1e4, 2e4, 0.0])), jnp.diag(jnp.asarray([1.0, 0.5, 0.0])),
+                    jnp.asarray([False, False, True]))
+    assert 4e4 < float(kr[2, 2]) <= 2 * 2e4 / 0.5 + 1 and float(mr[2, 2]) == 1.0  # above λ_max = 4e4, no further
