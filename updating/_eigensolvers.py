@@ -113,7 +113,7 @@ class Reduced(AbstractEigensolver):
     :meth:`~updating._extension.Extension.scales_only`): ``Vᵀ K(θ) V = fixed +
     (e^θ₀ − 1) Vᵀ ∂K V``, no assembly at all. Accurate while the basis spans the changed shapes
     (:mod:`updating._reduced`). Columns ``padding`` (zero, so that bases of different
-    sizes share a compiled fit) enter as uncoupled modes far above the others. ``observed``:
+    sizes share a compiled fit) enter as uncoupled modes just above the others (:func:`padded`). ``observed``:
     the basis at the sensors, C V, formed once (C V at every θ took a fifth of a reduced
     evaluation at 33,000 DoFs)."""
 
