@@ -90,16 +90,18 @@ class Subspace(AbstractEigensolver):
 
 
 def padded(kr, mr, padding):
-    """The reduced matrices with each ``padding`` column an uncoupled mode just above the
-    others: M 1, K twice the bound λ_max(K_r)/λ_min(M_r) of the largest eigenvalue, no
-    further. :func:`jaxfem.eigh` groups eigenvalues closer than 1e3·ε·max|λ| as one
-    cluster: padding at 1e3× the stiffness diagonal made that 500× wider, merged distinct
-    modes and averaged their derivatives (on the 33k barrel, springs held stiff, the
-    reduced gradient came out 25–57× too small and the seam's fits stalled)."""
+    """The symmetric reduced matrices with each ``padding`` column an uncoupled mode just
+    above the others: M 1, K twice the bound λ_max(K_r)/λ_min(M_r) of the largest
+    eigenvalue (λ_min(M_r) floored at ε·max M_r), no further. :func:`jaxfem.eigh` groups
+    eigenvalues closer than 1e3·ε·max|λ| as one cluster: padding at 1e3× the stiffest
+    diagonal widened that enough to merge distinct modes and average their derivatives
+    (on the 33k barrel, springs held stiff, the reduced gradient came out 25–57× too
+    small and the seam's fits stalled)."""
     pad = padding.astype(mr.dtype)
-    ks, ms = jax.lax.stop_gradient((0.5 * (kr + kr.T), 0.5 * (mr + mr.T)))
-    lk, lm = jnp.linalg.eigvalsh(ks)[-1], jnp.linalg.eigvalsh(ms + jnp.diag(pad))[0]
-    top = 2.0 * jnp.abs(lk) / jnp.maximum(lm, jnp.finfo(mr.dtype).tiny) + 1.0
+    ks, ms = jax.lax.stop_gradient((kr, mr + jnp.diag(pad)))
+    lk, lm = jnp.linalg.eigvalsh(ks)[-1], jnp.linalg.eigvalsh(ms)[0]
+    floor = jnp.finfo(mr.dtype).eps * jnp.max(jnp.abs(jnp.diagonal(ms)))
+    top = 2.0 * jnp.abs(lk) / jnp.maximum(lm, floor) + 1.0
     return kr + jnp.diag(top * pad), mr + jnp.diag(pad)
 
 
@@ -135,8 +137,8 @@ class Reduced(AbstractEigensolver):
         else:
             K, M = jaxfem.assemble(problem.model(theta).restricted(self.pool))
             kr, mr = self.fixed[0] + K.project(V), self.fixed[1] + M.project(V)
-        kr, mr = padded(kr, mr, self.padding)
-        lam, y = jaxfem.eigh(0.5 * (kr + kr.T), 0.5 * (mr + mr.T), problem.n_model)
+        kr, mr = padded(0.5 * (kr + kr.T), 0.5 * (mr + mr.T), self.padding)
+        lam, y = jaxfem.eigh(kr, mr, problem.n_model)
         phi_s = self.observed @ y
         index, paired = pair(lam, phi_s, problem)
         safe = jnp.where(paired, index, 0)
