@@ -226,8 +226,8 @@ def test_a_seams_line_is_released_once_and_its_runs_are_masks_on_it():
     import equinox as eqx
 
     from benchmarks import fuselage
-    from updating._candidates import STIFF, augment, seam_onward, structural_candidate
-    from updating._effects import SEAM_GRIDS, SEAM_LENGTHS, Seam
+    from updating._candidates import STIFF, augment, seam_onward, structural_candidate, structural_candidates
+    from updating._effects import SEAM_GRIDS, SEAM_LENGTHS, SEAM_SCREEN, Seam
 
     model = jaxfem.build_model(read_bdf_text(fuselage.barrel_bdf(2500)))
     seam = next(s for s in Seam.candidates(model) if s.pids[1] == 201 and len(s.nodes) == SEAM_GRIDS
@@ -242,15 +242,25 @@ def test_a_seams_line_is_released_once_and_its_runs_are_masks_on_it():
     coarse = [n.nodes for n in seam.neighbours(line, coarse=True)]
     assert coarse[:2] == [line[max(0, start - 2):max(0, start - 2) + 5], line[start + 2:start + 7]]  # half along
     assert coarse[2:6] == near[2:]  # an end a quarter of its length (one grid) out or in
-    assert [len(n) for n in coarse[6:]] == [3, 8] and all(seam.nodes[2] in n for n in coarse[6:])  # the ladder
+    assert coarse[6:8] == [line[start - 1:start + 6], line[start + 1:start + 4]]  # both ends out or in
+    assert coarse[8:] == [line[start - 2:start + 6]]  # the ladder (3 about its centre: both ends in) up to 8
     long = seam.run(line, start, 9)
-    assert [n.nodes for n in long.neighbours(line, coarse=True)][2:6] == [  # an end two grids out or in
-        line[start - 2:start + 9], line[start:start + 11], line[start + 2:start + 9], line[start:start + 7]]
+    assert [n.nodes for n in long.neighbours(line, coarse=True)][2:8] == [  # an end or both two grids out or in
+        line[start - 2:start + 9], line[start:start + 11], line[start + 2:start + 9], line[start:start + 7],
+        line[start - 2:start + 11], line[start + 2:start + 7]]
+    longer = [(line.index(r.nodes[0]), len(r.nodes)) for r in seam.longer(line)]  # screened beside it
+    assert len(set(longer)) == len(longer) and {m for _, m in longer} == {m for m in SEAM_SCREEN if m < len(line)}
+    assert all(line[i:i + m] == r.nodes for (i, m), r in zip(longer, seam.longer(line)))
+    assert all(i <= start + SEAM_GRIDS and i + m >= start for i, m in longer)  # overlapping it or next to it
+    assert any(i <= start and i + m >= start + SEAM_GRIDS for i, m in longer if m == SEAM_SCREEN[0])  # one holds it
 
     f0 = np.asarray(jaxfem.frequencies_hz(jaxfem.modes(model, 20, solver="sparse")[0]))
     aug, _, (released,) = augment(model, [], [seam], f0[6:])
     assert released.line == line and set(released.springs) == set(line)
     assert all(len(t) == len(r) == 1 for t, r in released.springs.values())
+    screened = structural_candidates(aug, [released])
+    assert [c.reference.nodes for c in screened] == [seam.nodes] + [r.nodes for r in seam.longer(line)]
+    assert all(c.released.line == line and c.scan for c in screened)
     assert released.trans == tuple(released.springs[g][0][0] for g in seam.nodes)
     assert released.rot == tuple(released.springs[g][1][0] for g in seam.nodes)
     soft = np.log([1e-5, 1e-5])

@@ -480,8 +480,11 @@ def pool(model: Model, cands: list[Candidate], dormant, stiffened) -> tuple[int,
 
 
 def structural_candidates(aug: Model, stiffened: list[Released]) -> list[Candidate]:
-    """The released joints, seams and supports of ``aug`` (:func:`structural_candidate`)."""
-    return [structural_candidate(aug, r) for r in stiffened]
+    """The released joints, seams and supports of ``aug`` (:func:`structural_candidate`),
+    and the longer runs about each seam on its line (:meth:`~updating._effects.Seam.longer`)."""
+    runs = [[r] + ([r.seam(s) for s in r.effect.longer(r.line)] if isinstance(r.effect, Seam) else [])
+            for r in stiffened]
+    return [structural_candidate(aug, r) for rs in runs for r in rs]
 
 
 def structural_candidate(aug: Model, released: Released, theta0=None) -> Candidate:

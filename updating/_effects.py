@@ -643,6 +643,8 @@ class Joint(AbstractAddedElements):
 
 SEAM_GRIDS = 5  # grids per seam candidate: a seam line is offered in runs of this many
 SEAM_LENGTHS = (3, 5, 8, 13, 21, 34)  # seam ladder, in grids: a fitted seam is refined along its line and in length
+SEAM_SCREEN = (13, 34)  # longer runs screened beside each run of SEAM_GRIDS (Seam.longer): a loose stretch
+# whose short pieces do not fit on their own (the 33k barrel's 31 grids: its first 5 fit at a local minimum)
 
 
 class Seam(AbstractAddedElements):
@@ -693,16 +695,28 @@ class Seam(AbstractAddedElements):
         return replace(self, nodes=nodes,
                        label=f"grids {nodes[0]}–{nodes[-1]} of pid {self.pids[1]} on pid {self.pids[0]}")
 
+    def longer(self, line: tuple[int, ...]) -> list[Seam]:
+        """Runs of each length of :data:`SEAM_SCREEN` shorter than ``line`` that overlap
+        this one or lie next to it, half a length apart (clipped to the line): the
+        stretches about it that screening offers."""
+        start, n = line.index(self.nodes[0]), len(self.nodes)
+        runs = [(int(np.clip(s, 0, len(line) - m)), m) for m in SEAM_SCREEN if m < len(line)
+                for s in range(start - m, start + n + 1, max(1, m // 2))]
+        return [self.run(line, s, m) for s, m in dict.fromkeys(runs)]
+
     def neighbours(self, line: tuple[int, ...], coarse: bool = False) -> list[Seam]:
         """The seams next to this one on its ``line``: one grid along it either way and
         each end one grid out or in; ``coarse``: half its length along either way, each
-        end a quarter of its length out or in, and the next length of :data:`SEAM_LENGTHS`
-        up and down about the same centre."""
+        end a quarter of its length out or in, both ends so (about the same centre), and
+        the next length of :data:`SEAM_LENGTHS` up and down about the same centre. (On the
+        33k barrel a run of 21 grids centred on the 31 loose ones fitted better than
+        every run one grid longer or shorter at either end, and worse than the 31.)"""
         start, n = line.index(self.nodes[0]), len(self.nodes)
         along, d = (max(1, n // 2), max(1, n // 4)) if coarse else (1, 1)
         runs = [(start - along, n), (start + along, n),  # along the line
                 (start - d, n + d), (start, n + d), (start + d, n - d), (start, n - d)]  # an end out or in
-        if coarse:  # the ladder, about the same centre
+        if coarse:  # both ends out or in; the ladder, about the same centre
+            runs += [(start - d, n + 2 * d), (start + d, n - 2 * d)]
             step = int(np.argmin(np.abs(np.asarray(SEAM_LENGTHS) - n)))
             runs += [(start + n // 2 - SEAM_LENGTHS[i] // 2, SEAM_LENGTHS[i]) for i in (step - 1, step + 1)
                      if 0 <= i < len(SEAM_LENGTHS)]
