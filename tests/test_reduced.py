@@ -81,10 +81,14 @@ def test_reduced_fit_lands_where_the_full_one_does(joint):
     assert abs(reduced["cost"] / full["cost"] - 1) < 1e-3
 
 
-def test_a_reduced_fit_is_checked_on_the_full_model(joint):
+def test_a_reduced_fit_is_checked_on_the_full_model(joint, monkeypatch):
     """The diagnosis reports the full model's values at a reduced fit's θ, and fits again
-    on the full model only where its cost there differs by more than FULL_MODEL_TOL χ²."""
+    on the full model only where its cost there differs by more than FULL_MODEL_TOL χ²
+    and more than FULL_MODEL_REL of its χ²."""
+    import updating._diagnose as d
+
     problem, fits, c, red, _ = joint
+    monkeypatch.setattr(d, "FULL_MODEL_REL", 0.0)  # first the absolute tolerance alone
     c.result = fit(fits, problem, c.ext, np.array([0.0, -4.6]), red)
     full = fit(fits, problem, c.ext, c.result["theta"], skip=True)
     said = []
@@ -97,6 +101,13 @@ def test_a_reduced_fit_is_checked_on_the_full_model(joint):
     assert len(said) == 1 and "fitted again" in said[0]
     direct = fit(fits, problem, c.ext, np.array([0.0, -4.6]))  # on the full model from the start
     assert again["cost"] <= full["cost"] and abs(again["cost"] / direct["cost"] - 1) < 1e-4
+    share = gap / full["cost"]  # then a gap of this share of the cost, far above FULL_MODEL_TOL χ²
+    monkeypatch.setattr(d, "FULL_MODEL_REL", 2 * share)
+    assert _on_full_model(fits, problem, c, gap / FULL_MODEL_TOL / 1e3, said.append)["cost"] == full["cost"]
+    assert len(said) == 1  # kept: the gap is half the relative tolerance
+    monkeypatch.setattr(d, "FULL_MODEL_REL", share / 2)
+    _on_full_model(fits, problem, c, gap / FULL_MODEL_TOL / 1e3, said.append)
+    assert len(said) == 2 and "fitted again" in said[1]
 
 
 def test_pool_assembles_only_what_changes(joint):

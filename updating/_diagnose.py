@@ -17,7 +17,8 @@
    the added mass, spring and payloads at the best-localised grid whatever they screen. On
    shells, patches about the region's shell grids (a delamination, a local membrane or
    bending stiffness, distributed mass; radii from a ladder), their centre and radius
-   then refined by hill-climbing; a seam likewise walks along its line and in length.
+   then refined by hill-climbing; a seam likewise walks along its line and in length,
+   from the best of the runs of 5, 13 and 34 grids screened there.
 4. **Ranking by evidence** (:mod:`updating._evidence`): the Laplace approximation of each
    candidate's marginal likelihood under its kind's prior, posterior probabilities over
    the candidates and the baseline; the most probable ones are cross-validated over the
@@ -104,7 +105,8 @@ from ._topology import total_mass
 
 
 SHAPE_SIGNAL = 2.0  # shape χ² per row at the nominal model below which residual forces do not define the region
-FULL_MODEL_TOL = 1.0  # χ² by which a candidate's reduced fit may miss its cost on the full model before it is fitted there
+FULL_MODEL_TOL = 1.0  # χ² by which a candidate's reduced fit may miss its cost on the full model before it is fitted there,
+FULL_MODEL_REL = 0.01  # or this share of its χ², if more (the 33k seam's reduced fit missed by 16 of 12,000: 0.13 %)
 CLIMB_SHARE = 0.5  # a patch kind or a seam is refined when it takes this share of the best candidate's cost reduction
 
 
@@ -132,9 +134,9 @@ class DiagnoseOptions:
     ``ray``: the shortlisted candidates fitted on Ray workers (``"local"``, ``"auto"`` or
     a cluster address, :func:`updating._ray.fit_candidates_ray`; ``ray_workers`` of them,
     default one per CPU); the hill-climb and the cross-validation stay on the driver.
-    ``threads``: without Ray, the shortlisted candidates are fitted on this many threads of
-    this process, sharing its compiled fit (None: one per CPU, at most ``OMP_NUM_THREADS``;
-    1: one after another).
+    ``threads``: without Ray, the shortlisted candidates, and the neighbours of each step of
+    the hill-climbs, are fitted on this many threads of this process, sharing its compiled
+    fit (None: one per CPU, at most ``OMP_NUM_THREADS``; 1: one after another).
     """
 
     noise_freq: float = 0.002
@@ -290,9 +292,18 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     with_masks(short, aug)
     say(f"{len(cands)} candidates screened; fitting {len(short)} ({elapsed()})")
 
-    def fitted(c: Candidate, theta0, i: int, n: int) -> dict:
-        say(f"  fitting {i}/{n}: {c.reference.kind} {c.reference.where()} ({elapsed()})")
-        return fit(fits, problem, c.ext, np.concatenate([theta_b, theta0]), solver(c))
+    def fitted(more: list[Candidate]) -> None:
+        """Each candidate fitted from its ``theta0`` (``result``): the reduced bases made one
+        after another, the fits on threads (:func:`_threaded`) sharing the compiled fit."""
+        def one(job: tuple[int, Candidate]) -> dict:
+            i, c = job
+            say(f"  fitting {i}/{len(more)}: {c.reference.kind} {c.reference.where()} ({elapsed()})")
+            return fit(fits, problem, c.ext, np.concatenate([theta_b, c.theta0]), solver(c))
+
+        for c in more:
+            solver(c)
+        for c, result in zip(more, _threaded(one, list(enumerate(more, 1)), options.threads)):
+            c.result = result
 
     # each from the better of the linearised step and none (the joints' scans are done)
     order = sorted(short, key=lambda c: c.family)
@@ -385,11 +396,13 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
 def _on_full_model(fits: Fits, problem, c: Candidate, sigma2: float, say) -> dict:
     """A candidate's reduced fit evaluated on the full model at its θ (costs, Jacobian);
     fitted again there only where the two costs differ by more than :data:`FULL_MODEL_TOL`
-    in χ² (a reduced basis that misses the effect: a heavy mass's own mode). At 33,000
-    DoFs a refit takes 340 s a seam."""
+    in χ² or, if more, :data:`FULL_MODEL_REL` of the candidate's χ² (a reduced basis
+    that misses the effect: a heavy mass's own mode; a gap far below the misfit the
+    candidate leaves itself moves neither its place nor the verdict). At 33,000 DoFs a
+    refit takes 140–340 s a seam."""
     check = fit(fits, problem, c.ext, c.result["theta"], skip=True)
     gap = abs(check["cost"] - c.result["cost"]) / sigma2
-    if gap <= FULL_MODEL_TOL:
+    if gap <= max(FULL_MODEL_TOL, FULL_MODEL_REL * check["cost"] / sigma2):
         return check
     say(f"  {c.reference.kind} {c.reference.where()}: the reduced fit is off by χ² {gap:.3g}; fitted again")
     return fit(fits, problem, c.ext, c.result["theta"])
@@ -433,7 +446,7 @@ def _climb(best: Candidate, fitted_neighbours, onward=None) -> list[tuple[Candid
 def _refine_places(fitted, solver, fits: Fits, problem, aug: Model, cands: list[Candidate], short: list[Candidate],
                    base: dict, theta_b: np.ndarray) -> list[tuple[Candidate, Candidate]]:
     """Hill-climb over the grids: the best fitted added mass (spring to ground) is fitted
-    (``fitted(candidate, θ₀, i, n)``) at the neighbouring grids of the region, and moves
+    (``fitted(candidates)``, each from its θ₀) at the neighbouring grids of the region, and moves
     while one fits better (the linearised screen hardly separates neighbours). Fitted
     candidates join ``short``; returns the moves made."""
     at_grid = {(c.reference.kind, c.reference.nodes): c for c in cands if c.family == "mask"
@@ -443,10 +456,10 @@ def _refine_places(fitted, solver, fits: Fits, problem, aug: Model, cands: list[
         kind = best.reference.kind
         new = [at_grid[kind, (g,)] for g in neighbours(aug, best.reference.nodes[0])
                if (kind, (g,)) in at_grid and at_grid[kind, (g,)] not in short]
-        for i, c in enumerate(new, 1):
+        for c in new:
             c.theta0 = scan_start(fits, problem, c.ext, theta_b, c.scan, solver(c))
-            c.result = fitted(c, c.theta0, i, len(new))
-            short.append(c)
+        fitted(new)
+        short.extend(new)
         return new
 
     moves = []
@@ -473,19 +486,16 @@ def _refine_patches(fitted, model: Model, aug: Model, short: list[Candidate], ba
     done = {key(c.reference): c for c in short if isinstance(c.reference, AbstractPatch)}
 
     def fitted_neighbours(best: Candidate) -> list[Candidate]:
-        out = []
         near = patch_neighbours(model, best, f_e)
-        for i, patch in enumerate(near, 1):
-            if key(patch) not in done:
-                c = patch_candidate(patch, model, None, f_e, mass)
-                with_masks([c], aug)
-                theta = best.result["theta"]
-                c.theta0 = theta[len(theta) - len(c.theta0):]
-                c.result = fitted(c, c.theta0, i, len(near))
-                done[key(patch)] = c
-                short.append(c)
-            out.append(done[key(patch)])
-        return out
+        new = {key(p): patch_candidate(p, model, None, f_e, mass) for p in near if key(p) not in done}
+        with_masks(list(new.values()), aug)
+        theta = best.result["theta"]
+        for c in new.values():
+            c.theta0 = theta[len(theta) - len(c.theta0):]
+        fitted(list(new.values()))
+        done.update(new)
+        short.extend(new.values())
+        return [done[key(p)] for p in near]
 
     bar = _climb_bar(short, base)
     best_of: dict = {}
@@ -501,27 +511,26 @@ def _refine_seams(fitted, aug: Model, short: list[Candidate], base: dict) -> lis
     """Hill-climb of the best fitted seam that takes at least half the cost reduction of
     the best candidate (as a patch, :func:`_refine_patches`) on its released line
     (:meth:`~updating._effects.Seam.neighbours`): first in coarse moves (half its length
-    along, each end a quarter of it out or in, the length ladder), then in fine ones (one
+    along, each end or both a quarter of it out or in, the length ladder), then in fine ones (one
     grid along, each end out or in), the last move made once more first, the neighbours
     fitted, moving while one fits better. Fits join ``short``."""
     done = {(c.reference.pids, c.reference.nodes): c for c in short
             if c.reference.kind == Seam.kind and c.released is not None}
 
-    def known(c: Candidate, i: int, n: int) -> Candidate:
-        key = c.reference.pids, c.reference.nodes
-        if key not in done:
-            c.result = fitted(c, c.theta0, i, n)
-            done[key] = c
-            short.append(c)
-        return done[key]
+    def known(near: list[Candidate]) -> list[Candidate]:
+        new = list({(c.reference.pids, c.reference.nodes): c for c in near
+                    if (c.reference.pids, c.reference.nodes) not in done}.values())
+        fitted(new)
+        done.update({(c.reference.pids, c.reference.nodes): c for c in new})
+        short.extend(new)
+        return [done[c.reference.pids, c.reference.nodes] for c in near]
 
     def fitted_neighbours(best: Candidate, coarse: bool) -> list[Candidate]:
-        near = seam_neighbours(aug, best, coarse)
-        return [known(c, i, len(near)) for i, c in enumerate(near, 1)]
+        return known(seam_neighbours(aug, best, coarse))
 
     def onward(a: Candidate, b: Candidate) -> Candidate | None:
         ahead = seam_onward(aug, a, b)
-        return None if ahead is None else known(ahead, 1, 1)
+        return None if ahead is None else known([ahead])[0]
 
     bar = _climb_bar(short, base)
     best = min((c for c in done.values() if c.result["cost"] < bar), key=lambda c: c.result["cost"], default=None)
