@@ -32,10 +32,11 @@ def test_loss_factors_enter_as_element_stiffness(beam):
     lam, phi = jaxfem.eigh(K, M, 6)
     energies = jaxfem.element_strain_energies(model, phi)
     assert energies.dtype == jnp.float64 and energies.shape == (dd.N_ELEMENTS, 6)
-    np.testing.assert_allclose(np.asarray(energies).sum(axis=0), np.asarray(lam), rtol=1e-10)  # Σ_e φᵀK_eφ = λ
+    # Σ_e φᵀK_eφ = λ to rounding: the dense solve's λ₁ carries about ε‖K‖ (2.6e-10 relative on one machine's LAPACK)
+    np.testing.assert_allclose(np.asarray(energies).sum(axis=0), np.asarray(lam), rtol=1e-9)
 
     everywhere = LocalDamping(eids=tuple(range(1, dd.N_ELEMENTS + 1)), eta=0.04).apply(model)
-    np.testing.assert_allclose(np.asarray(jaxfem.modal_loss_factors(everywhere, lam, phi)), 0.04, rtol=1e-10)
+    np.testing.assert_allclose(np.asarray(jaxfem.modal_loss_factors(everywhere, lam, phi)), 0.04, rtol=1e-9)  # η Σ_e/λ
 
     patch = parse_effect("damping:eids=6-8").updated([0.2]).apply(model)
     k_without = np.asarray(jaxfem.assemble(jaxfem.correct(model, [[6, 7, 8]], jnp.array([-1.0])))[0].todense())
