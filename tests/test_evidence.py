@@ -71,3 +71,26 @@ def test_scan_start_refines_the_first_factor_about_the_best_point(monkeypatch):
     np.testing.assert_array_equal(_evidence.scan_start(None, None, None, np.zeros(0), ((0.0, 0.0), (1.5, 0.3))),
                                   [2.0, 0.3])
     assert calls == [2, 4]
+
+
+def test_a_fit_whose_model_fails_in_a_host_check_is_reported_not_ranked(monkeypatch):
+    """A trial step that makes the model fail a check in a host callback (K + σM not
+    positive definite) reaches the fit as a RuntimeError or, on a thread, as a ValueError
+    naming the callback: the candidate gets cost inf and the error; other errors propagate."""
+    from types import SimpleNamespace
+
+    import updating._evidence as ev
+    from updating._evidence import fit
+
+    monkeypatch.setattr(ev, "with_extension", lambda problem, *a: problem)
+    problem = SimpleNamespace(lam_e=np.ones(3))
+    for err in (RuntimeError("K + σM is not positive definite"),
+                ValueError("INTERNAL: CpuCallback error calling callback: K + σM is not positive definite")):
+        def fail(*args, err=err):
+            raise err
+
+        res = fit(SimpleNamespace(solve=fail), problem, None, np.zeros(2))
+        assert res["cost"] == np.inf and np.isnan(res["freq_dev"]).all() and res["error"] == str(err)
+    with pytest.raises(ValueError, match="shapes"):
+        fit(SimpleNamespace(solve=lambda *a: (_ for _ in ()).throw(ValueError("shapes differ"))), problem, None,
+            np.zeros(2))

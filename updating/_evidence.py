@@ -146,7 +146,9 @@ def fit(fits: Fits, problem: Problem, ext: Extension, theta0, solver: AbstractEi
     try:
         out = jax.tree.map(np.asarray, fits.solve(theta0, with_extension(problem, ext, np.ones(len(lam_e), bool)),
                                                   solver, skip))
-    except RuntimeError as err:  # a trial step made the model non-finite: report, do not rank
+    except (RuntimeError, ValueError) as err:  # a trial step made the model non-finite: report, do not rank
+        if isinstance(err, ValueError) and "CpuCallback error" not in str(err):
+            raise  # a check in a host callback arrives as either (a fit on a thread at 33k: ValueError)
         return {"theta": np.asarray(theta0), "cost": float("inf"), "freq_dev": np.full(len(lam_e), np.nan),
                 "mac": np.full(len(lam_e), np.nan), "error": str(err).splitlines()[0]}
     theta, (cf, cs), _, lam_a, paired, macs, jac = out
