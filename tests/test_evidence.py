@@ -91,6 +91,8 @@ def test_a_fit_whose_model_fails_in_a_host_check_is_reported_not_ranked(monkeypa
 
         res = fit(SimpleNamespace(solve=fail), problem, None, np.zeros(2))
         assert res["cost"] == np.inf and np.isnan(res["freq_dev"]).all() and res["error"] == str(err)
+    def other(*args):
+        raise ValueError("shapes differ")
+
     with pytest.raises(ValueError, match="shapes"):
-        fit(SimpleNamespace(solve=lambda *a: (_ for _ in ()).throw(ValueError("shapes differ"))), problem, None,
-            np.zeros(2))
+        fit(SimpleNamespace(solve=other), problem, None, np.zeros(2))

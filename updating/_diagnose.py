@@ -514,16 +514,17 @@ def _refine_seams(fitted, aug: Model, short: list[Candidate], base: dict) -> lis
     along, each end or both a quarter of it out or in, the length ladder), then in fine ones (one
     grid along, each end out or in), the last move made once more first, the neighbours
     fitted, moving while one fits better. Fits join ``short``."""
-    done = {(c.reference.pids, c.reference.nodes): c for c in short
-            if c.reference.kind == Seam.kind and c.released is not None}
+    def key(c: Candidate):
+        return c.reference.pids, c.reference.nodes
+
+    done = {key(c): c for c in short if c.reference.kind == Seam.kind and c.released is not None}
 
     def known(near: list[Candidate]) -> list[Candidate]:
-        new = list({(c.reference.pids, c.reference.nodes): c for c in near
-                    if (c.reference.pids, c.reference.nodes) not in done}.values())
-        fitted(new)
-        done.update({(c.reference.pids, c.reference.nodes): c for c in new})
-        short.extend(new)
-        return [done[c.reference.pids, c.reference.nodes] for c in near]
+        new = {key(c): c for c in near if key(c) not in done}
+        fitted(list(new.values()))
+        done.update(new)
+        short.extend(new.values())
+        return [done[key(c)] for c in near]
 
     def fitted_neighbours(best: Candidate, coarse: bool) -> list[Candidate]:
         return known(seam_neighbours(aug, best, coarse))

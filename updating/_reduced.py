@@ -234,11 +234,9 @@ def _width(columns: int) -> int:
 def _distinct(loads: scipy.sparse.csc_matrix) -> scipy.sparse.csc_matrix:
     """The columns of ``loads`` (nonzero ones) that differ beyond sign and scale: a
     spring's change load k (e_a − e_b) comes from either of its ends."""
-    seen, keep = set(), []
+    loads, seen, keep = loads.sorted_indices(), set(), []
     for j in range(loads.shape[1]):
         rows, values = (a[loads.indptr[j]:loads.indptr[j + 1]] for a in (loads.indices, loads.data))
-        order = np.argsort(rows)
-        rows, values = rows[order], values[order]
         key = (rows.tobytes(), np.round(values / values[np.argmax(np.abs(values))], 12).tobytes())
         if key not in seen:
             seen.add(key)
