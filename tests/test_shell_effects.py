@@ -303,3 +303,19 @@ def test_a_climb_makes_its_last_move_again_before_asking_every_neighbour():
     moves = _climb(at[2], near, lambda a, b: at.get(2 * b.x - a.x))
     assert [b.x for _, b in moves] == [3, 4, 5, 6, 7] and asked == [2, 7]
     assert [b.x for _, b in _climb(at[2], near)] == [3, 4, 5, 6, 7]  # without: every step asks
+
+
+def test_the_margin_about_a_region_goes_ring_by_ring_best_first_and_skips_clamped_grids(panel):
+    """The place walk's margin (updating._candidates.margin): the region's neighbours
+    first, then the next ring, each best scoring first, never a clamped grid."""
+    from updating._candidates import margin, neighbours
+
+    edge = _grid_at(panel, 0.04, 0.15)  # one element from the clamped edge x = 0
+    ring1 = set(neighbours(panel, edge))
+    clamped = {g for g in ring1 if abs(float(panel.xyz[panel.node_index([g])[0], 0])) < 1e-9}
+    assert len(ring1) == 8 and len(clamped) == 3
+    assert set(margin(panel, [edge], 5, {})) == ring1 - clamped
+    ring2 = {g for r in ring1 for g in neighbours(panel, r)} - ring1 - {edge} - clamped
+    favourite = max(ring2)
+    got = margin(panel, [edge], 7, {favourite: 1.0})
+    assert set(got[:5]) == ring1 - clamped and got[5] == favourite and got[6] in ring2

@@ -59,6 +59,7 @@ from ._candidates import (
     group_candidates,
     group_screens,
     localised_grids,
+    margin,
     neighbours,
     node_candidates,
     node_max,
@@ -107,6 +108,7 @@ from ._topology import total_mass
 SHAPE_SIGNAL = 2.0  # shape χ² per row at the nominal model below which residual forces do not define the region
 FULL_MODEL_TOL = 1.0  # χ² by which a candidate's reduced fit may miss its cost on the full model before it is fitted there,
 FULL_MODEL_REL = 0.01  # or this share of its χ², if more (the 33k seam's reduced fit missed by 16 of 12,000: 0.13 %)
+POINT_WALK = ("added_mass", "boundary_spring")  # the kinds the place walk moves from grid to grid
 CLIMB_SHARE = 0.5  # a patch kind or a seam is refined when it takes this share of the best candidate's cost reduction
 
 
@@ -228,10 +230,11 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     nodes = localised_grids(model, nominal_screen, node_nominal, options.max_nodes, options.region)
     structures = region_structures(model, nodes, node_nominal, options.kinds, options.max_structural)
     mass = total_mass(model)
-    aug, dormant, stiffened = augment(model, nodes, structures, f_e)
+    beyond = margin(model, nodes, options.max_nodes, node_nominal)
+    aug, dormant, stiffened = augment(model, nodes, structures, f_e, beyond)
     problem = build_problem(aug, test, pset)
-    say(f"region: {len(nodes)} grids, {len(structures)} joints, seams or supports"
-        f"{''.join(f'; {e.kind} at {e.where()}' for e in structures)}; one model of {aug.n_dof} DoFs")
+    say(f"region: {len(nodes)} grids ({len(beyond)} more about it for the place walk), {len(structures)} joints, "
+        f"seams or supports{''.join(f'; {e.kind} at {e.where()}' for e in structures)}; one model of {aug.n_dof} DoFs")
 
     # -- baseline: the engineer's parameters fitted on all modes and on each fold
     say(f"baseline fit ({n_b} parameters, {len(masks) - 1}-fold cross-validation over {ne} modes)")
@@ -264,7 +267,10 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
                        modes=bases.modes if bases is not None else None)
     elem_a = screen.element_reduction("k")
     node_a = node_max(aug, elem_a)
-    cands = group_candidates(model, aug, params, screen) + node_candidates(aug, dormant, screen)
+    points = node_candidates(aug, dormant, screen)
+    walk = [c.reference.kind in POINT_WALK and c.reference.nodes[0] in set(beyond) for c in points]
+    walk_only = [c for c, w in zip(points, walk) if w and c.effect.kind in options.kinds]
+    cands = group_candidates(model, aug, params, screen) + [c for c, w in zip(points, walk) if not w]
     kinds = options.kinds
     if jaxfem.use_sparse(aug, problem.solver) and "frequency_dependent_stiffness" in kinds:
         say("frequency laws are not offered: they need the dense eigensolver")
@@ -320,7 +326,7 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
         say(f"  fitted {k}/{len(order)}: {c.reference.kind} {c.reference.where()} ({elapsed()})")
 
     # -- the place refined: an added mass or spring moves to a neighbouring grid while that fits better
-    for c0, c1 in _refine_places(fitted, solver, fits, problem, aug, cands, short, base, theta_b):
+    for c0, c1 in _refine_places(fitted, solver, fits, problem, aug, cands + walk_only, short, base, theta_b):
         say(f"  {c1.reference.kind} moved from grid {c0.reference.nodes[0]} to {c1.reference.nodes[0]} ({elapsed()})")
     for c0, c1 in _refine_patches(fitted, model, aug, short, base, f_e) + _refine_seams(fitted, aug, short, base):
         say(f"  {c1.reference.kind} moved from {c0.reference.where()} to {c1.reference.where()} ({elapsed()})")
@@ -450,7 +456,7 @@ def _refine_places(fitted, solver, fits: Fits, problem, aug: Model, cands: list[
     while one fits better (the linearised screen hardly separates neighbours). Fitted
     candidates join ``short``; returns the moves made."""
     at_grid = {(c.reference.kind, c.reference.nodes): c for c in cands if c.family == "mask"
-               and c.reference.kind in ("added_mass", "boundary_spring") and not c.ext.split}
+               and c.reference.kind in POINT_WALK and not c.ext.split}
 
     def fitted_neighbours(best: Candidate) -> list[Candidate]:
         kind = best.reference.kind
@@ -463,7 +469,7 @@ def _refine_places(fitted, solver, fits: Fits, problem, aug: Model, cands: list[
         return new
 
     moves = []
-    for kind in ("added_mass", "boundary_spring"):
+    for kind in POINT_WALK:
         tried = [c for c in short if c.reference.kind == kind and (kind, c.reference.nodes) in at_grid]
         best = min(tried, key=lambda c: c.result["cost"], default=None)
         if best is not None and best.result["cost"] < base["cost"]:
