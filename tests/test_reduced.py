@@ -110,27 +110,36 @@ def test_a_reduced_fit_is_checked_on_the_full_model(joint, monkeypatch):
     assert len(said) == 2 and "fitted again" in said[1]
 
 
-def test_pool_assembles_only_what_changes(joint):
+def test_pool_assembles_only_what_changes(joint, monkeypatch):
     """With a pool holding the joint's springs (and a beam it does not change), each step
-    assembles only the pool and adds the rest once: the same eigenvalues and derivatives
-    to rounding. A pool missing one of them is not used."""
+    assembles only the pool and adds the rest once; the springs' stiffness being linear in
+    each of the two factors, the reduced matrices are the projected derivatives' sums
+    (``linear``), not assembled at all: both give the eigenvalues and derivatives of the
+    whole model assembled in the same basis, to rounding. A pool missing one of them is
+    not used."""
     problem, _, c, red, (bases, springs) = joint
     p = with_extension(problem, c.ext)
     beam = int(np.asarray(problem.structure.value.beams.ids)[0])
     bases.pool = tuple(sorted(springs + [beam]))
     try:
-        pooled = bases.reduced(problem, c.ext, np.zeros(2), held=True)
+        linear = bases.reduced(problem, c.ext, np.zeros(2), held=True)
+        with monkeypatch.context() as m:
+            m.setattr(Bases, "_linear", lambda *a: False)
+            pooled = bases.reduced(problem, c.ext, np.zeros(2), held=True)
         bases.pool = (beam,) + tuple(sorted(springs))[1:]
         missing = bases.reduced(problem, c.ext, np.zeros(2), held=True)
     finally:
         bases.pool = None
-    assert pooled.pool == tuple(sorted(springs + [beam])) and missing.pool is None and red.pool is None
+    assert linear.linear is not None and linear.linear[0].shape[0] == 2
+    assert pooled.pool == tuple(sorted(springs + [beam])) and pooled.linear is None
+    assert missing.pool is None and missing.linear is None and red.pool is None and red.linear is None
     lam = lambda solver, t: solver(t, p, jnp.zeros(0))[0].lam_a  # noqa: E731
     for theta in ([0.0, 0.0], [-2.0, -6.0], [0.5, -9.0]):
         t = jnp.asarray(theta)
-        np.testing.assert_allclose(lam(pooled, t), lam(red, t), rtol=1e-9)
-        np.testing.assert_allclose(jax.jacfwd(lambda t: lam(pooled, t))(t), jax.jacfwd(lambda t: lam(red, t))(t),
-                                   rtol=1e-7, atol=1e-9 * float(np.max(np.asarray(lam(red, t)))))
+        for solver in (pooled, linear):
+            np.testing.assert_allclose(lam(solver, t), lam(red, t), rtol=1e-9)
+            np.testing.assert_allclose(jax.jacfwd(lambda t: lam(solver, t))(t), jax.jacfwd(lambda t: lam(red, t))(t),
+                                       rtol=1e-7, atol=1e-9 * float(np.max(np.asarray(lam(red, t)))))
 
 
 def test_pool_holds_the_engineers_parameters_too(case):
@@ -238,3 +247,27 @@ def test_padding_leaves_close_modes_their_own_derivatives():
     kr, mr = padded(jnp.diag(jnp.asarray([1e4, 2e4, 0.0])), jnp.diag(jnp.asarray([1.0, 0.5, 0.0])),
                     jnp.asarray([False, False, True]))
     assert 4e4 < float(kr[2, 2]) <= 2 * 2e4 / 0.5 + 1 and float(mr[2, 2]) == 1.0  # above λ_max = 4e4, no further
+
+
+def test_a_mass_raised_off_its_grid_is_assembled_not_linear(case):
+    """A woken point mass is linear in its factor (``linear``); the same mass with its CG
+    raised by θ₁ (a payload's height: inertia quadratic in θ₁) is not, and is assembled
+    from the pool at each step: both give the eigenvalues of the whole model assembled
+    in the same basis."""
+    from updating._eigensolvers import Reduced
+
+    model, test = case
+    aug, dormant, _ = augment(model, [NODE], [], np.asarray(test.frequencies_hz))
+    problem = build_problem(aug, test, ParameterSet((), Options(regularisation=1e-6)))
+    bases = Bases(with_extension(problem, extension(aug)), np.zeros(1))
+    ids = next(ids for ref, ids in dormant if ref.kind == "added_mass")
+    raised = {ids[0]: (np.array([0.0, 0.0, 0.1]), np.diag([1.0, 1.0, 0.0]), np.diag([2.0, 2.0, 0.0]))}
+    bases.pool = tuple(sorted(ids))
+    woken, lifted = (bases.reduced(problem, ext, np.zeros(ext.n_params)) for ext in (
+        extension(aug, m_add=ids), extension(aug, m_add=ids, height=raised)))
+    assert woken.linear is not None and lifted.linear is None and lifted.pool == bases.pool
+    for red, theta in ((woken, [[0.0], [1.2], [-2.0]]), (lifted, [[0.0, 0.0], [0.5, 3.0], [-1.0, -2.0]])):
+        p = with_extension(problem, extension(aug, m_add=ids, height=raised if red is lifted else None))
+        whole = Reduced(red.basis, red.padding, red.observed)
+        for t in map(jnp.asarray, theta):
+            np.testing.assert_allclose(red(t, p, jnp.zeros(0))[0].lam_a, whole(t, p, jnp.zeros(0))[0].lam_a, rtol=1e-9)

@@ -33,6 +33,7 @@ from jaxtyping import Array, Bool, Float
 
 import jaxfem
 
+from ._extension import THETA_MAX
 from ._residuals import Evaluation, Problem, evaluate, pair, paired_evaluation, paired_subspace
 
 LOCKSTEP = "lockstep"  # vmap axis name of samples updated together (Monte-Carlo)
@@ -111,9 +112,12 @@ class Reduced(AbstractEigensolver):
     so their derivatives are those of the reduced problem, exact (:func:`jaxfem.eigh`).
     With a ``pool`` of element ids holding every element that θ changes, only the pool
     is assembled: ``Vᵀ K(θ) V = fixed + Vᵀ K_pool(θ) V`` (``fixed``: the rest, constant),
-    exact and cheap on a large model. With ``linear`` (a group's factor, θ₀ alone moving,
-    :meth:`~updating._extension.Extension.scales_only`): ``Vᵀ K(θ) V = fixed +
-    (e^θ₀ − 1) Vᵀ ∂K V``, no assembly at all. Accurate while the basis spans the changed shapes
+    exact and cheap on a large model. With ``linear`` (K and M linear in each factor
+    e^θᵢ of the extension's parameters, checked by :meth:`updating._reduced.Bases.reduced`:
+    a group's factor, dormant masses or springs woken, springs that hold a connection,
+    a patch's part of its shells' stiffness): ``Vᵀ K(θ) V = fixed + Σᵢ (e^(θᵢ − cᵢ) − 1)
+    Vᵀ ∂ᵢK V`` about the basis' ``centre`` c, no assembly at all (on the 33k barrel a
+    seam's pool of 851 elements took 0.3 s a projection at r = 768). Accurate while the basis spans the changed shapes
     (:mod:`updating._reduced`). Columns ``padding`` (zero, so that bases of different
     sizes share a compiled fit) enter as uncoupled modes just above the others (:func:`padded`). ``observed``:
     the basis at the sensors, C V, formed once (C V at every θ took a fifth of a reduced
@@ -124,13 +128,15 @@ class Reduced(AbstractEigensolver):
     observed: Float[Array, "s r"]
     fixed: tuple[Float[Array, "r r"], Float[Array, "r r"]] | None = None
     pool: tuple[int, ...] | None = eqx.field(static=True, default=None)
-    linear: tuple[Float[Array, "r r"], Float[Array, "r r"]] | None = None
+    linear: tuple[Float[Array, "p r r"], Float[Array, "p r r"]] | None = None
+    centre: Float[Array, " p"] | None = None
 
     def __call__(self, theta, problem, warm):
         V = self.basis
-        if self.linear is not None:  # the extension's factor on a group, nothing else moving
-            g = problem.extension.factor(theta[len(problem.parameterisation.parameters)])
-            kr, mr = self.fixed[0] + g * self.linear[0], self.fixed[1] + g * self.linear[1]
+        if self.linear is not None:  # K and M linear in the extension's factors, nothing else moving
+            n = len(problem.parameterisation.parameters)
+            g = jnp.expm1(jnp.clip(theta[n:n + self.centre.shape[0]], -THETA_MAX, THETA_MAX) - self.centre)
+            kr, mr = (f + jnp.tensordot(g, d, axes=1) for f, d in zip(self.fixed, self.linear))
         elif self.pool is None:
             K, M = jaxfem.assemble(problem.model(theta))
             kr, mr = V.T @ K.matmul(V), V.T @ M.matmul(V)

@@ -20,7 +20,7 @@ from jaxfem import STIFFNESS_BLOCKS as K_BLOCKS
 
 SHELL_BLOCKS = ("quads", "trias")
 PARTS = ("membrane", "bending", "shear")  # the columns of Shells.parts
-_THETA_MAX = 25.0  # |log-factor| beyond which a trial step is clipped (e^25 ≈ 7e10)
+THETA_MAX = 25.0  # |log-factor| beyond which a trial step is clipped (e^25 ≈ 7e10)
 
 
 class Extension(eqx.Module):
@@ -57,10 +57,6 @@ class Extension(eqx.Module):
     def n_params(self) -> int:
         return 2 if self.visco or bool(self.split) or bool(self.height) else 1
 
-    def factor(self, theta0):
-        """The factor e^θ₀ − 1 by which :meth:`scales_only` changes its elements."""
-        return jnp.expm1(jnp.clip(theta0, -_THETA_MAX, _THETA_MAX))
-
     def scales_only(self) -> bool:
         """Whether θ₀ only multiplies whole elements' stiffness or mass by e^θ₀ (a group's
         factor): then K(θ₀) = K(0) + (e^θ₀ − 1) ∂K/∂θ₀ exactly, and likewise M (on the host)."""
@@ -69,7 +65,7 @@ class Extension(eqx.Module):
         return unit and inert and not (self.visco or bool(self.split) or bool(self.height))
 
     def __call__(self, model: Model, theta: Float[Array, " e"]) -> Model:
-        theta = jnp.clip(theta, -_THETA_MAX, _THETA_MAX)  # a wild trial step stays finite
+        theta = jnp.clip(theta, -THETA_MAX, THETA_MAX)  # a wild trial step stays finite
         s = jnp.exp(theta[0])
         # θ₁ enters through masks that are zero unless it is this extension's (``split``,
         # ``height``): one compiled fit serves every extension of one or two parameters

@@ -53,6 +53,8 @@ from ._residuals import Problem, pair
 
 ATTACH_MAX = 400  # DoFs a candidate may touch for attachment columns; more: first-order columns
 WIDTHS = (96, 2.0, 32)  # a basis is padded to the next width of 96, then ×2 (one compiled fit per width)
+LINEAR_STEP = (0.7, -0.9)  # the step along the candidate's parameters at which Bases._linear checks K(θ) and M(θ)
+LINEAR_RTOL = 1e-10  # their largest departure from the linear forms, relative to their largest entry
 MASS_FLOOR = 1e-10  # basis directions of M-norm² below this share of the largest are dropped
 
 
@@ -166,6 +168,23 @@ class Bases:
             ids += [np.asarray(getattr(problem.structure.value, n).ids)[np.asarray(v) != 0] for n, v in blocks.items()]
         return np.unique(np.concatenate(ids)) if ids else np.zeros(0, np.int64)
 
+    def _linear(self, theta, problem: Problem, tangents, pool) -> bool:
+        """Whether K and M of the elements ``pool`` are linear in each factor e^θᵢ of the
+        candidate's parameters about ``theta`` (:class:`Reduced`'s ``linear``), as they are
+        where each parameter scales its own elements or their part of a shell's stiffness:
+        checked at one step along all of them, K(θ + s) = K(θ) + Σᵢ (e^sᵢ − 1) ∂ᵢK(θ)."""
+        tangents = np.asarray(tangents)
+        step = tangents.T @ np.resize(LINEAR_STEP, len(tangents))
+        at, moved = (self._matrices(t, problem, pool) for t in (theta, theta + jnp.asarray(step)))
+        slopes = [self._derivative(theta, problem, jnp.asarray(d), pool) for d in tangents if d.any()]
+        factors = np.expm1(step[tangents.any(axis=0)])
+        for i in (0, 1):
+            for j, (a, b) in enumerate(zip(at[i].values(), moved[i].values())):
+                guess = np.asarray(a) + sum(f * np.asarray(s[i].values()[j]) for f, s in zip(factors, slopes))
+                if np.max(np.abs(np.asarray(b) - guess), initial=0.0) > LINEAR_RTOL * np.max(np.abs(b), initial=0.0):
+                    return False
+        return True
+
     def _change_loads(self, theta, problem: Problem, tangents, touched: np.ndarray, pool) -> scipy.sparse.csc_matrix:
         """``∂K e_d`` and ``∂M e_d`` along each tangent, for each touched DoF d (their
         columns of ∂K and ∂M, of the elements ``pool`` assembled, all when None): the
@@ -195,9 +214,13 @@ class Bases:
         tangents = jnp.asarray(np.eye(len(theta))[self.n_b:] * (np.arange(EXTENSION_PARAMS) < len(theta_c))[:, None])
         changed = self._changed(theta, p, n) if self.pool is not None else None
         pool = self.pool if changed is not None and np.isin(changed, self.pool).all() else None
-        linear = pool is None and self.n_b == 0 and ext.scales_only()
+        linear = self.n_b == 0 and (ext.scales_only() if pool is None else self._linear(theta, p, tangents, pool))
         touched = np.flatnonzero(np.asarray(self._touched(theta, p, tangents, pool)))
-        M = self._matrices(theta, p, pool)[1].tocsr() + (self._rest[1] if pool is not None else 0)
+        if pool is not None:  # K and M at θ: the rest, and the pool assembled
+            at = tuple(a + b.tocsr() for a, b in zip(self._rest, self._matrices(theta, p, pool)))
+        else:  # a group's factor at θ = 0 changes nothing
+            at = self._full if linear else tuple(A.tocsr() for A in self._matrices(theta, p, None))
+        M = at[1]
         if len(touched) <= ATTACH_MAX * (2 if held else 1):  # a held spring's load is one column from either end
             if held:
                 loads = _distinct(self._change_loads(theta, p, tangents, touched, pool)).toarray()
@@ -215,9 +238,12 @@ class Bases:
         V, padding = np.pad(V, ((0, 0), (0, r - columns))), jnp.arange(r) >= columns
         head = (jnp.asarray(V), padding, jnp.asarray(np.asarray(problem.C) @ V))
         project = lambda matrices: tuple(jnp.asarray(V.T @ (A @ V)) for A in matrices)  # noqa: E731
-        if linear:
-            derivative = self._derivative(theta, p, tangents[0])
-            return Reduced(*head, project(self._full), linear=project(A.tocsr() for A in derivative))
+        if linear:  # Vᵀ ∂ᵢK V and Vᵀ ∂ᵢM V along each parameter (zero along the padding)
+            zero = scipy.sparse.csr_matrix(at[0].shape)
+            slopes = [tuple(A.tocsr() for A in self._derivative(theta, p, jnp.asarray(d), pool)) if d.any() else (zero, zero)
+                      for d in np.asarray(tangents)]
+            return Reduced(*head, project(at), linear=tuple(jnp.stack(project(s[i] for s in slopes)) for i in (0, 1)),
+                           centre=theta[self.n_b:])
         if pool is None:
             return Reduced(*head)
         return Reduced(*head, project(self._rest), pool)
