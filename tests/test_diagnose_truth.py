@@ -3,7 +3,7 @@ independent FE code (refined Timoshenko beams, RBE2 links as penalty springs, it
 joints, springs, masses and power-law visco-elastic stiffness) with one hidden effect and
 noise. Each case must declare the effect at its place (or list the place among the ties
 the sensors cannot separate) and bring the held-out frequency error below twice the
-noise; the controls must declare nothing. The GARTEUR cases take 160–194 s each on one thread
+noise; the controls must declare nothing. The GARTEUR cases take 55–85 s each on one thread
 beside another worker (2026-11-28)."""
 
 import pytest
