@@ -14,7 +14,9 @@
    fits share one compiled solver. They are screened by the linearised residual
    reduction ρ (joints and supports by a coarse scan of their stiffness); per kind those
    within ``within`` of the kind's best are fitted (Optimistix Levenberg–Marquardt), and
-   the added mass, spring and payloads at the best-localised grid whatever they screen. On
+   the added mass, spring and payloads at the best-localised grid whatever they screen;
+   the best added mass or spring walks to neighbouring grids, also past the region's
+   edge (:func:`~updating._candidates.margin`). On
    shells, patches about the region's shell grids (a delamination, a local membrane or
    bending stiffness, distributed mass; radii from a ladder), their centre and radius
    then refined by hill-climbing; a seam likewise walks along its line and in length,
@@ -120,8 +122,8 @@ class DiagnoseOptions:
     shape components (Table 4.7 magnitudes); ``noise_damping``: of measured damping
     ratios (identified damping scatters by 5–20 %). ``region``: the localised region holds the
     grids of the groups screening at least this share of the best and the grids scoring at
-    least this share of the best (at most ``max_nodes`` grids and ``max_structural``
-    joints or supports). Fitted: the ``shortlist`` best
+    least this share of the best (at most ``max_nodes`` grids, and as many about it where
+    the place walk may move a mass or spring, and ``max_structural`` joints or supports). Fitted: the ``shortlist`` best
     screened candidates, and of each kind those screening at least ``within`` of the
     kind's best (at most ``per_kind``). ``cross_validate``: the most probable candidates
     cross-validated with ``folds`` folds over the test modes. Every fit is the engine's
