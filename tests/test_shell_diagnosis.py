@@ -20,8 +20,9 @@ damaged elements, and its control (the healthy panel measured twice). At 50 mm t
 model's own mesh error leaves χ²/row 2,538 on the change and nothing is declared; at
 25 mm the delamination ranks first within one element of the truth, but its held-out
 frequency error (0.09 → 0.04 %) stays above twice the noise of a difference (0.028 %):
-the 25 mm mesh cannot carry the 12.5 mm truth's change in the frequencies exactly
-(χ²/row 1.0 over all rows, the shape rows dominating)."""
+the 25 mm mesh cannot carry the 12.5 mm truth's change in the frequencies: the model
+with the truth's own damage card on its own elements misses the truth's changes by up
+to 0.075 % (RMS 0.024 % over the band's 23 modes; measured 2026-11-28)."""
 
 import json
 import os
