@@ -234,6 +234,7 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     mass = total_mass(model)
     beyond = margin(model, nodes, options.max_nodes, node_nominal)
     aug, dormant, stiffened = augment(model, nodes, structures, f_e, beyond)
+    beyond = set(beyond)
     problem = build_problem(aug, test, pset)
     say(f"region: {len(nodes)} grids ({len(beyond)} more about it for the place walk), {len(structures)} joints, "
         f"seams or supports{''.join(f'; {e.kind} at {e.where()}' for e in structures)}; one model of {aug.n_dof} DoFs")
@@ -270,7 +271,7 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     elem_a = screen.element_reduction("k")
     node_a = node_max(aug, elem_a)
     points = node_candidates(aug, dormant, screen)
-    walk = [c.reference.kind in POINT_WALK and c.reference.nodes[0] in set(beyond) for c in points]
+    walk = [c.reference.kind in POINT_WALK and c.reference.nodes[0] in beyond for c in points]
     walk_only = [c for c, w in zip(points, walk) if w and c.effect.kind in options.kinds]
     cands = group_candidates(model, aug, params, screen) + [c for c, w in zip(points, walk) if not w]
     kinds = options.kinds

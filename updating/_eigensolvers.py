@@ -113,7 +113,7 @@ class Reduced(AbstractEigensolver):
     With a ``pool`` of element ids holding every element that θ changes, only the pool
     is assembled: ``Vᵀ K(θ) V = fixed + Vᵀ K_pool(θ) V`` (``fixed``: the rest, constant),
     exact and cheap on a large model. With ``linear`` (K and M linear in each factor
-    e^θᵢ of the extension's parameters, checked by :meth:`updating._reduced.Bases.reduced`:
+    e^θᵢ of the extension's parameters, checked by :meth:`updating._reduced.Bases._linear`:
     a group's factor, dormant masses or springs woken, springs that hold a connection,
     a patch's part of its shells' stiffness): ``Vᵀ K(θ) V = fixed + Σᵢ (e^(θᵢ − cᵢ) − 1)
     Vᵀ ∂ᵢK V`` about the basis' ``centre`` c, no assembly at all (600 shells projected at

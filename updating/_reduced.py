@@ -170,34 +170,33 @@ class Bases:
             ids += [np.asarray(getattr(problem.structure.value, n).ids)[np.asarray(v) != 0] for n, v in blocks.items()]
         return np.unique(np.concatenate(ids)) if ids else np.zeros(0, np.int64)
 
-    def _linear(self, theta, problem: Problem, tangents, pool) -> bool:
-        """Whether K and M of the elements ``pool`` are linear in each factor e^θᵢ of the
-        candidate's parameters about ``theta`` (:class:`Reduced`'s ``linear``), as they are
-        where each parameter scales its own elements or their part of a shell's stiffness:
-        checked at one step along all of them, K(θ + s) = K(θ) + Σᵢ (e^sᵢ − 1) ∂ᵢK(θ)."""
-        tangents = np.asarray(tangents)
-        step = tangents.T @ np.resize(LINEAR_STEP, len(tangents))
-        at, moved = (self._matrices(t, problem, pool) for t in (theta, theta + jnp.asarray(step)))
-        slopes = [self._derivative(theta, problem, jnp.asarray(d), pool) for d in tangents if d.any()]
-        factors = np.expm1(step[tangents.any(axis=0)])
+    @staticmethod
+    def _linear(at, moved, slopes, step) -> bool:
+        """Whether the element matrices ``moved`` (K, M at θ + ``step``) are those at θ
+        (``at``) changed linearly in each factor e^θᵢ along the derivatives ``slopes``
+        (one (∂K, ∂M) per parameter, None along the padding): K(θ + s) = K(θ) + Σᵢ
+        (e^sᵢ − 1) ∂ᵢK(θ), as where each parameter scales its own elements or their part
+        of a shell's stiffness (:class:`Reduced`'s ``linear``)."""
+        factors = np.expm1(step)
         for i in (0, 1):
             for j, (a, b) in enumerate(zip(at[i].values(), moved[i].values())):
-                guess = np.asarray(a) + sum(f * np.asarray(s[i].values()[j]) for f, s in zip(factors, slopes))
+                guess = np.asarray(a) + sum(f * np.asarray(d[i].values()[j]) for f, d in zip(factors, slopes)
+                                            if d is not None)
                 if np.max(np.abs(np.asarray(b) - guess), initial=0.0) > LINEAR_RTOL * np.max(np.abs(b), initial=0.0):
                     return False
         return True
 
-    def _change_loads(self, theta, problem: Problem, tangents, touched: np.ndarray, pool) -> scipy.sparse.csc_matrix:
-        """``∂K e_d`` and ``∂M e_d`` along each tangent, for each touched DoF d (their
-        columns of ∂K and ∂M, of the elements ``pool`` assembled, all when None): the
+    @staticmethod
+    def _change_loads(slopes, touched: np.ndarray, n: int) -> scipy.sparse.csc_matrix:
+        """``∂K e_d`` and ``∂M e_d`` along each parameter (``slopes``: its (∂K, ∂M), None
+        along the padding), for each touched DoF d (their columns; ``n`` DoFs): the
         loads a change exerts across its own elements (a spring's k (e_a − e_b)). Their
         static responses hold the motion across a connection released and held stiff (a
         joint, a seam), which the unit loads' responses hold only as the difference of two
         nearly equal columns, below :data:`MASS_FLOOR`. Taken from the sparse derivative
         (a product with unit columns, in JAX, took 7 of a 33k seam's 10 s basis)."""
-        cols = [A.tocsr().tocsc()[:, touched] for d in np.asarray(tangents) if d.any()
-                for A in self._derivative(theta, problem, jnp.asarray(d), pool)]
-        loads = scipy.sparse.hstack(cols, format="csc") if cols else scipy.sparse.csc_matrix((len(self.phi), 0))
+        cols = [A.tocsc()[:, touched] for d in slopes if d is not None for A in d]
+        loads = scipy.sparse.hstack(cols, format="csc") if cols else scipy.sparse.csc_matrix((n, 0))
         loads.eliminate_zeros()
         return loads[:, np.flatnonzero(np.diff(loads.indptr))]
 
@@ -216,16 +215,25 @@ class Bases:
         tangents = jnp.asarray(np.eye(len(theta))[self.n_b:] * (np.arange(EXTENSION_PARAMS) < len(theta_c))[:, None])
         changed = self._changed(theta, p, n) if self.pool is not None else None
         pool = self.pool if changed is not None and np.isin(changed, self.pool).all() else None
-        linear = self.n_b == 0 and (ext.scales_only() if pool is None else self._linear(theta, p, tangents, pool))
-        touched = np.flatnonzero(np.asarray(self._touched(theta, p, tangents, pool)))
+        group = self.n_b == 0 and ext.scales_only()  # a group's factor alone: linear by construction
+        # ∂K, ∂M along each parameter (None along the padding), of the pool (all when None)
+        slopes = [self._derivative(theta, p, d, pool) if bool(d.any()) else None for d in tangents] \
+            if pool is not None or held or group else None
         if pool is not None:  # K and M at θ: the rest, and the pool assembled
-            at = tuple(a + b.tocsr() for a, b in zip(self._rest, self._matrices(theta, p, pool)))
+            part = self._matrices(theta, p, pool)
+            step = np.resize(LINEAR_STEP, len(tangents)) * np.asarray(tangents).any(axis=1)
+            linear = self.n_b == 0 and self._linear(
+                part, self._matrices(theta + jnp.asarray(step) @ tangents, p, pool), slopes, step)
+            at = tuple(a + b.tocsr() for a, b in zip(self._rest, part))
         else:  # a group's factor at θ = 0 changes nothing
+            linear = group
             at = self._full if linear else tuple(A.tocsr() for A in self._matrices(theta, p, None))
+        host = [None if d is None else tuple(A.tocsr() for A in d) for d in slopes] if held or linear else None
+        touched = np.flatnonzero(np.asarray(self._touched(theta, p, tangents, pool)))
         M = at[1]
         if len(touched) <= ATTACH_MAX * (2 if held else 1):  # a held spring's load is one column from either end
             if held:
-                loads = _distinct(self._change_loads(theta, p, tangents, touched, pool)).toarray()
+                loads = _distinct(self._change_loads(host, touched, len(self.phi))).toarray()
             else:
                 loads = np.zeros((len(self.phi), len(touched)))
                 loads[touched, np.arange(len(touched))] = 1.0
@@ -242,9 +250,8 @@ class Bases:
         project = lambda matrices: tuple(jnp.asarray(_project(A, V)) for A in matrices)  # noqa: E731
         if linear:  # Vᵀ ∂ᵢK V and Vᵀ ∂ᵢM V along each parameter (zero along the padding)
             zero = scipy.sparse.csr_matrix(at[0].shape)
-            slopes = [tuple(A.tocsr() for A in self._derivative(theta, p, jnp.asarray(d), pool)) if d.any() else (zero, zero)
-                      for d in np.asarray(tangents)]
-            return Reduced(*head, project(at), linear=tuple(jnp.stack(project(s[i] for s in slopes)) for i in (0, 1)),
+            host = [(zero, zero) if d is None else d for d in host]
+            return Reduced(*head, project(at), linear=tuple(jnp.stack(project(d[i] for d in host)) for i in (0, 1)),
                            centre=theta[self.n_b:])
         if pool is None:
             return Reduced(*head)
