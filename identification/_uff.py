@@ -1,7 +1,7 @@
 """Universal File Format (UFF) reading through pyuff, and the unit codes it shares with writing.
 
-Datasets: 164 (units), 15 and 2411 (nodes), 55 (mode shapes at nodes), 58/58b (FRFs and
-coherence). Everything read is converted to SI with the factors of dataset 164, which
+Datasets: 164 (units), 18 and 2420 (coordinate systems), 15 and 2411 (nodes), 55 (mode
+shapes at nodes), 58/58b (FRFs and coherence). Everything read is converted to SI with the factors of dataset 164, which
 give file units per SI unit (SI = file value / factor; a file in mm has length factor
 1000), using the unit exponents of the UFF 58 table (Addendum A):
 
@@ -9,6 +9,16 @@ give file units per SI unit (SI = file value / factor; a file in mm has length f
 - generalised (modal) masses, force/length: × length / force;
 - FRF values, response/excitation: translational response ÷ length, excitation force
   × force, excitation moment × length·force (so a receptance in mm/N is ÷ 1000).
+
+Coordinate systems: a node's coordinates are given in its definition system and its
+measured components (shape values, FRF directions) along the axes of its displacement
+system. Rectangular, cylindrical (r, θ, z) and spherical (r, θ from +z, φ from +x in the
+xy plane; angles in degrees) systems are supported. Dataset 18 defines a system by its
+origin, a point on +x and a point in the +xz plane, given in a reference system; in
+dataset 2420 rows 1–3 of the transformation matrix are the local x, y, z axes in global
+coordinates and row 4 the origin. Coordinates are converted to global, and every sensor
+direction becomes the global direction of its local axis at the node (a skew direction
+when the system is rotated).
 
 Frequencies are in Hz in every unit system. :func:`write_uff`
 (:mod:`identification._uff_write`) converts from SI with the same factors.
@@ -19,11 +29,15 @@ from __future__ import annotations
 import math
 import os
 import warnings
+from typing import NamedTuple
 
+import equinox as eqx
 import numpy as np
 import pyuff
 
 from ._data import FRFData, ModalData, Sensors
+
+LENGTH_UNITS = {"m": 1.0, "mm": 1000.0, "cm": 100.0, "in": 1.0 / 0.0254}  # file units per metre
 
 # Unit codes of dataset 164 and their factors (file units per SI unit): length, force.
 _LBF = 1.0 / 4.4482216152605
@@ -47,18 +61,29 @@ _FRF_CODES = {kind: code for code, kind in _FRF_SPEC_TYPES.items()}
 _FORCE_SPEC_TYPES = (0, 9, 13)  # unknown (a type-4 function is per unit force), reaction, excitation
 _FRF, _COHERENCE = 4, 6  # dataset 58 function types
 _NORMAL_MODE, _COMPLEX_MODES = 2, (3, 7)  # dataset 55 analysis types
+_SYSTEM_TYPES = {0: "rectangular", 1: "cylindrical", 2: "spherical"}
+_ORTHO_TOL = 1e-6  # axes written with 7 digits are still orthonormal
 _SI = {"code": 1, "description": "SI", "length": 1.0, "force": 1.0, "temperature": 1.0, "temperature_offset": 273.15}
 
 
-def read_uff(path: str | os.PathLike) -> dict:
+def read_uff(path: str | os.PathLike, *, length_units: str | None = None) -> dict:
     """Read nodes, units, modes and FRFs from a universal file, in SI.
+
+    ``length_units`` ("m", "mm", "cm" or "in"): the unit of the file's lengths when it
+    has no dataset 164 (the exporter did not say); it overrides a dataset 164, with a
+    ``UserWarning``, when the two differ. Forces stay as the file or SI says.
 
     **Returns:** a dict with
 
-    - ``"nodes"``: {grid id: xyz (3,) in m} from datasets 15 and 2411;
+    - ``"nodes"``: {node id: xyz (3,) in m, global axes} from datasets 15 and 2411,
+      transformed from their definition systems (datasets 18 and 2420);
     - ``"units"``: the dataset-164 system: ``code``, ``description``, ``length``,
-      ``force``, ``temperature``, ``temperature_offset`` (file units per SI unit); SI,
-      with a ``UserWarning``, when the file has no dataset 164;
+      ``force``, ``temperature``, ``temperature_offset`` (file units per SI unit), and
+      ``declared``: False when the file has no dataset 164 (SI is then assumed, with a
+      ``UserWarning``, unless ``length_units`` is given);
+    - ``"systems"``: {system label: {"type": "rectangular" | "cylindrical" |
+      "spherical", "axes": (3, 3) rows = local x, y, z in global, "origin": (3,) m}} of
+      the file's coordinate systems;
     - ``"modes"``: :class:`ModalData` of all dataset-55 normal (analysis type 2) and
       complex (3, 7) modes, or None. Sensors are the global components of each node
       (3, or 6 with rotations); a component that is zero in every mode counts as not
@@ -70,8 +95,12 @@ def read_uff(path: str | os.PathLike) -> dict:
       with the coherence records (type 6) when every FRF has one, or None. The kind
       follows the ordinate type: displacement, velocity, acceleration.
 
+    Sensor directions are global: a component measured along a local axis of the
+    node's displacement system becomes that axis in global coordinates.
+
     Raises ``ValueError`` naming the record and item for: an unreadable dataset,
-    contradicting unit records, nodes defined twice differently, a mode referencing
+    contradicting unit records, a coordinate system that is not orthonormal, degenerate,
+    of unknown type or defined twice differently, nodes defined twice differently, a mode referencing
     a node absent from the node datasets, NaN values, a DoF twice in one mode, modes
     with different DoF sets, FRF records on different frequency axes, duplicate or
     missing (output, input) pairs, and FRFs of mixed or unknown kinds.
@@ -90,21 +119,46 @@ def read_uff(path: str | os.PathLike) -> dict:
     by_type: dict[int, list[tuple[int, dict]]] = {}
     for number, record in records:
         by_type.setdefault(int(record["type"]), []).append((number, record))
-    units = _units(by_type.get(164, []), path)
+    units = _units(by_type.get(164, []), path, length_units)
+    systems = _systems(by_type.get(18, []), by_type.get(2420, []), units["length"], path)
     node_records = sorted(by_type.get(15, []) + by_type.get(2411, []), key=lambda record: record[0])
-    nodes = _nodes(node_records, units["length"], path)
+    nodes, frames = _nodes(node_records, units["length"], systems, path)
+    modes = _modes(by_type.get(55, []), nodes, units, path)
+    frfs = _frfs(by_type.get(58, []), units, path)
+    if frames and modes is not None:
+        modes = eqx.tree_at(lambda m: m.sensors, modes, _global(modes.sensors, frames))
+    if frames and frfs is not None:
+        frfs = eqx.tree_at(lambda f: (f.outputs, f.inputs), frfs,
+                           (_global(frfs.outputs, frames), _global(frfs.inputs, frames)))
     return {
         "nodes": nodes,
         "units": units,
-        "modes": _modes(by_type.get(55, []), nodes, units, path),
-        "frfs": _frfs(by_type.get(58, []), units, path),
+        "systems": {label: {"type": _SYSTEM_TYPES[sys.kind], "axes": sys.axes, "origin": sys.origin}
+                    for label, sys in systems.items() if label != 0},
+        "modes": modes,
+        "frfs": frfs,
     }
 
 
-def _units(records: list[tuple[int, dict]], path: str) -> dict:
+def _units(records: list[tuple[int, dict]], path: str, length_units: str | None) -> dict:
+    if length_units is not None and length_units not in LENGTH_UNITS:
+        raise ValueError(f"length units {length_units!r}: use one of {', '.join(LENGTH_UNITS)}")
     if not records:
-        warnings.warn(f"{path}: no units dataset (164); SI units assumed", stacklevel=3)
-        return dict(_SI)
+        if length_units is None:
+            warnings.warn(f"{path}: no units dataset (164); SI units assumed", stacklevel=3)
+            return dict(_SI, declared=False)
+        return dict(_SI, length=LENGTH_UNITS[length_units], declared=False,
+                    description=f"lengths in {length_units} (given), forces in N")
+    units = _declared(records, path)
+    if length_units is not None and not math.isclose(units["length"], LENGTH_UNITS[length_units],
+                                                     rel_tol=_FACTOR_RTOL):
+        warnings.warn(f"{path}: the units dataset gives {units['length']:.6g} length units per metre; lengths "
+                      f"taken in {length_units} as given instead", stacklevel=3)
+        units["length"] = LENGTH_UNITS[length_units]
+    return units
+
+
+def _declared(records: list[tuple[int, dict]], path: str) -> dict:
     (first_number, first), *others = records
     units = {
         "code": int(first["units_code"]),
@@ -113,6 +167,7 @@ def _units(records: list[tuple[int, dict]], path: str) -> dict:
         "force": float(first["force"]),
         "temperature": float(first["temp"]),
         "temperature_offset": float(first["temp_offset"]),
+        "declared": True,
     }
     for number, record in others:
         if (int(record["units_code"]), record["length"], record["force"], record["temp"], record["temp_offset"]) != (
@@ -138,31 +193,142 @@ def _units(records: list[tuple[int, dict]], path: str) -> dict:
     return units
 
 
-def _nodes(records: list[tuple[int, dict]], length: float, path: str) -> dict[int, np.ndarray]:
+class _System(NamedTuple):
+    kind: int  # 0 rectangular, 1 cylindrical, 2 spherical
+    axes: np.ndarray  # (3, 3): rows are the local x, y, z axes in global coordinates
+    origin: np.ndarray  # (3,) m, global
+    where: str
+
+
+_GLOBAL = _System(0, np.eye(3), np.zeros(3), "global")
+
+
+def _systems(records18: list, records2420: list, length: float, path: str) -> dict[int, _System]:
+    """Coordinate systems of datasets 2420 (matrix) and 18 (three points in a reference
+    system, resolved in order of reference), in global coordinates; 0 is global."""
+    systems = {0: _GLOBAL}
+
+    def add(label: int, system: _System) -> None:
+        if system.kind not in _SYSTEM_TYPES:
+            raise ValueError(f"{path}: {system.where}: coordinate system {label} has type {system.kind} (expected "
+                             "0 rectangular, 1 cylindrical or 2 spherical)")
+        old = systems.get(label)
+        if old is not None and not (old.kind == system.kind and np.allclose(old.axes, system.axes, atol=_ORTHO_TOL)
+                                    and np.allclose(old.origin, system.origin, rtol=1e-9, atol=1e-12)):
+            raise ValueError(f"{path}: coordinate system {label} of {system.where} differs from {old.where}")
+        systems[label] = system
+
+    for number, r in records2420:
+        for label, kind, matrix in zip(r["CS_sys_labels"], r["CS_types"], r["CS_matrices"]):
+            m = np.asarray(matrix, dtype=np.float64)
+            where = f"dataset #{number}"
+            if m.shape != (4, 3) or not np.all(np.isfinite(m)):
+                raise ValueError(f"{path}: {where}: coordinate system {int(label)}: matrix {m.tolist()} is not 4 "
+                                 "finite rows of 3")
+            if not np.allclose(m[:3] @ m[:3].T, np.eye(3), atol=_ORTHO_TOL):
+                raise ValueError(f"{path}: {where}: coordinate system {int(label)}: rows 1-3 of the matrix "
+                                 f"{m[:3].tolist()} are not orthonormal axes")
+            add(int(label), _System(int(kind), m[:3], m[3] / length, where))
+    pending = {}
+    for number, r in records18:
+        for i, label in enumerate(np.asarray(r["cs_num"]).astype(int).tolist()):
+            pending[label] = (number, i, r)
+    while pending:
+        ready = [label for label, (_, i, r) in pending.items() if int(r["ref_cs_num"][i]) in systems]
+        if not ready:
+            raise ValueError(f"{path}: coordinate systems {sorted(pending)} (dataset 18) refer to systems "
+                             f"{sorted({int(r['ref_cs_num'][i]) for _, i, r in pending.values()})} that are not "
+                             "defined (or refer to each other in a circle)")
+        for label in ready:
+            number, i, r = pending.pop(label)
+            where = f"dataset #{number}"
+            if int(r["method"][i]) != 1:
+                raise ValueError(f"{path}: {where}: coordinate system {label}: method of definition "
+                                 f"{int(r['method'][i])} (only 1: origin, +x axis, +xz plane)")
+            ref = systems[int(r["ref_cs_num"][i])]
+            o, xp, zp = (_to_global(ref, np.asarray(r[k][i], dtype=np.float64).reshape(1, 3), length)[0]
+                         for k in ("ref_o", "x_point", "xz_point"))
+            x, y = xp - o, np.cross(zp - o, xp - o)  # y is normal to the xz plane
+            if not (np.linalg.norm(x) > 0 and np.linalg.norm(y) > 1e-9 * np.linalg.norm(x) * np.linalg.norm(zp - o)):
+                raise ValueError(f"{path}: {where}: coordinate system {label}: origin, +x point and +xz point "
+                                 f"{[o.tolist(), xp.tolist(), zp.tolist()]} m do not define axes")
+            x, y = x / np.linalg.norm(x), y / np.linalg.norm(y)
+            add(label, _System(int(r["cs_type"][i]), np.stack([x, y, np.cross(x, y)]), o, where))
+    return systems
+
+
+def _to_global(system: _System, coords: np.ndarray, length: float) -> np.ndarray:
+    """Global xyz [m] of file coordinates (n, 3) in ``system``: x, y, z; r, θ, z; or
+    r, θ, φ (angles in degrees, lengths in file units)."""
+    c = np.asarray(coords, dtype=np.float64)
+    if system.kind == 1:
+        t = np.radians(c[:, 1])
+        local = np.column_stack([c[:, 0] * np.cos(t), c[:, 0] * np.sin(t), c[:, 2]]) / length
+    elif system.kind == 2:
+        t, f = np.radians(c[:, 1]), np.radians(c[:, 2])
+        local = c[:, :1] * np.column_stack([np.sin(t) * np.cos(f), np.sin(t) * np.sin(f), np.cos(t)]) / length
+    else:
+        local = c / length
+    return system.origin + local @ system.axes
+
+
+def _frame(system: _System, x: np.ndarray) -> np.ndarray:
+    """Rows: the global directions of the local components 1, 2, 3 at global point ``x``
+    (the axes; for curvilinear systems e_r, e_θ, e_z or e_r, e_θ, e_φ there)."""
+    if system.kind == 0:
+        return system.axes
+    p = (x - system.origin) @ system.axes.T
+    f = math.atan2(p[1], p[0])
+    if system.kind == 1:
+        local = np.array([[math.cos(f), math.sin(f), 0.0], [-math.sin(f), math.cos(f), 0.0], [0.0, 0.0, 1.0]])
+    else:
+        t = math.atan2(math.hypot(p[0], p[1]), p[2])
+        local = np.array([[math.sin(t) * math.cos(f), math.sin(t) * math.sin(f), math.cos(t)],
+                          [math.cos(t) * math.cos(f), math.cos(t) * math.sin(f), -math.sin(t)],
+                          [-math.sin(f), math.cos(f), 0.0]])
+    return local @ system.axes
+
+
+def _nodes(records: list[tuple[int, dict]], length: float, systems: dict[int, _System],
+           path: str) -> tuple[dict[int, np.ndarray], dict[int, np.ndarray]]:
+    """Global node coordinates [m], and the displacement frames of nodes whose measured
+    directions are not the global axes."""
     nodes: dict[int, np.ndarray] = {}
+    frames: dict[int, np.ndarray] = {}
     where: dict[int, int] = {}
-    local = set()
+    undefined: dict[int, list[int]] = {}
     for number, record in records:
         ids = np.asarray(record["node_nums"], dtype=np.float64).astype(np.int64)
-        xyz = np.column_stack([record["x"], record["y"], record["z"]]).astype(np.float64) / length
-        systems = np.column_stack([record["def_cs"], record["disp_cs"]])
-        local.update(int(g) for g in ids[np.any(systems != 0, axis=1)])
-        for g, x in zip(ids.tolist(), xyz):
+        raw = np.column_stack([record["x"], record["y"], record["z"]]).astype(np.float64)
+        used = [np.asarray(record[k], dtype=np.float64).astype(np.int64) for k in ("def_cs", "disp_cs")]
+        for label in set(used[0].tolist()) | set(used[1].tolist()):
+            if label not in systems:
+                undefined.setdefault(label, []).extend(ids[(used[0] == label) | (used[1] == label)].tolist())
+        for g, c, d, x in zip(ids.tolist(), used[0].tolist(), used[1].tolist(), raw):
             if not np.all(np.isfinite(x)):
                 raise ValueError(f"{path}: node dataset #{number}: node {g} has coordinates {x.tolist()}")
-            if g in nodes and not np.array_equal(nodes[g], x):
+            x = _to_global(systems.get(c, _GLOBAL), x.reshape(1, 3), length)[0]
+            if g in nodes and not np.allclose(nodes[g], x, rtol=1e-12, atol=0.0):
                 raise ValueError(
                     f"{path}: node {g} is at {nodes[g].tolist()} m in dataset #{where[g]} but at {x.tolist()} m "
                     f"in dataset #{number}"
                 )
             nodes[g], where[g] = x, number
-    if local:
-        warnings.warn(
-            f"{path}: nodes {sorted(local)} name local coordinate systems; their coordinates and "
-            "shapes are taken as global",
-            stacklevel=3,
-        )
-    return nodes
+            frame = _frame(systems.get(d, _GLOBAL), x)
+            if not np.allclose(frame, np.eye(3), rtol=0.0, atol=1e-12):
+                frames[g] = frame
+    if undefined:
+        listing = "; ".join(f"system {label}: nodes {sorted(set(g))}" for label, g in sorted(undefined.items()))
+        warnings.warn(f"{path}: nodes name coordinate systems that the file does not define (datasets 18/2420), "
+                      f"taken as global: {listing}", stacklevel=3)
+    return nodes, frames
+
+
+def _global(sensors: Sensors, frames: dict[int, np.ndarray]) -> Sensors:
+    """``sensors`` with each direction, given in its node's displacement frame, in global axes."""
+    directions = np.array([d @ frames[int(g)] if int(g) in frames else d
+                           for g, d in zip(sensors.nodes, sensors.directions)]).reshape(-1, 3)
+    return Sensors.from_vectors(sensors.nodes, directions, sensors.rotational)
 
 
 def _modes(records: list[tuple[int, dict]], nodes: dict, units: dict, path: str) -> ModalData | None:

@@ -132,7 +132,7 @@ def test_file_in_mm_and_newton_is_read_in_si(tmp_path):
     ])
     data = read_uff(path)
     assert data["units"] == {"code": 9, "description": "test", "length": 1000.0, "force": 1.0,
-                             "temperature": 1.0, "temperature_offset": 273.15}
+                             "temperature": 1.0, "temperature_offset": 273.15, "declared": True}
     np.testing.assert_allclose(data["nodes"][1], [1.0, 0.0, 0.25], rtol=1e-15)
     np.testing.assert_allclose(data["nodes"][2], [0.0, -0.5, 0.0], rtol=1e-15)
     modes = data["modes"]
@@ -260,7 +260,7 @@ def test_reader_warnings_name_what_is_dropped(tmp_path):
     with pytest.warns(UserWarning) as record:
         modes = read_uff(path)["modes"]
     messages = " | ".join(str(w.message) for w in record)
-    assert "nodes [2] name local coordinate systems" in messages
+    assert "taken as global: system 3: nodes [2]" in messages
     assert "modes [1] give only a hysteretic damping value" in messages
     assert "only modes [1] give a modal mass; generalised masses dropped" in messages
     assert "dataset-58 function type(s) [2] are not FRFs or coherence; ignored" in messages
