@@ -7,7 +7,11 @@ iω_r√(1−ζ_r²) of every model order (:func:`lscf`); a pole is stable when 
 damping and shape (MAC, complex-aware, thesis eq. 1.54) agree with the previous order
 (:func:`stabilisation`), and clusters of stable poles that recur over many orders are
 the modes (:func:`_select`). Closely spaced modes are resolved; their shapes come from
-LSFD (:mod:`identification._lsfd`). NumPy/SciPy float64 on the host.
+LSFD (:mod:`identification._lsfd`). The references of the matrix-fraction model are the
+smaller side of the FRF matrix: the inputs, or, with more inputs than outputs (a roving
+hammer test: one accelerometer, many hammer points), the outputs, the FRFs read by
+Maxwell reciprocity H_ij = H_ji as n_in outputs of n_out references. NumPy/SciPy float64
+on the host.
 """
 
 from __future__ import annotations
@@ -89,7 +93,9 @@ def lscf(
     α_p = I, the numerators eliminated (reduced normal equations), and the poles are the
     eigenvalues z_r of the companion matrix of D, s_r = ln(z_r)/Δt (Peeters et al. 2004).
     Each output row is weighted by 1/RMS‖H_o‖ so every sensor counts alike; a row is
-    left out at a line where one of its values is masked by ``min_coherence``.
+    left out at a line where one of its values is masked by ``min_coherence``. With more
+    inputs than outputs the FRF matrix is transposed first (reciprocity, H_ij = H_ji):
+    the outputs are the references and the inputs the rows.
 
     **Returns:** {order: poles s (rad/s), Im s > 0, Re s < 0, ζ ≤ ``max_damping``,
     undamped frequency in the band}, sorted by frequency.
@@ -101,15 +107,31 @@ def lscf(
     return {p: poles for p, (poles, _, _) in zip(orders, _lscf_poles(f, h, usable, orders, max_damping))}
 
 
+def _reference_side(h: np.ndarray, usable: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """h, usable (nf, rows, references) with the smaller side of the FRF matrix as references.
+
+    With more inputs than outputs the polyreference model would have more references
+    than rows (one accelerometer, N hammer points: an N × N denominator fitted to one
+    row, no shape to test by MAC); by reciprocity H_ij = H_ji the matrix is transposed.
+    """
+    if h.shape[2] > h.shape[1]:
+        return np.swapaxes(h, 1, 2), np.swapaxes(usable, 1, 2)
+    return h, usable
+
+
 def _lscf_poles(f, h, usable, orders, max_damping):
-    """[(poles, participation (n_in, n), numerator shapes (n_out, n))] per order, filtered to physical poles."""
+    """[(poles, participation (n_ref, n), numerator shapes (n_rows, n))] per order, filtered to physical poles.
+
+    Rows and references as :func:`_reference_side` orients them.
+    """
+    h, usable = _reference_side(h, usable)
     n_out, n_in = h.shape[1:]
     w = 2 * np.pi * f
     dt = 1.0 / (2 * f[-1])
     row_ok = np.all(usable, axis=2)  # (nf, n_out): an output row counts only where all its inputs are usable
     active = np.flatnonzero(np.any(row_ok, axis=0))
     if not len(active):
-        raise ValueError("no frequency line where all inputs of an output are usable: pLSCF has no data")
+        raise ValueError("no frequency line where all references of a row are usable: pLSCF has no data")
     row_ok = row_ok[:, active]
     h_act = np.where(usable, h, 0.0)[:, active]
     power = np.sum(np.where(row_ok[:, :, None], np.abs(h_act) ** 2, 0.0), axis=(0, 2)) / np.sum(row_ok, axis=0)
@@ -162,18 +184,28 @@ def _stabilisation(f, h, usable, orders, tol_f, tol_zeta, min_mac, max_damping) 
     table = {key: np.asarray(val) for key, val in rows.items()}
     table["pole"] = table["pole"].astype(np.complex128)
     table["shape"] = (
-        np.concatenate(shapes_all, axis=1) if shapes_all else np.zeros((h.shape[1], 0), dtype=np.complex128)
+        np.concatenate(shapes_all, axis=1) if shapes_all else np.zeros((max(h.shape[1:]), 0), dtype=np.complex128)
     )
     return table
 
 
+def _min_orders(n_orders: int, min_fraction: float) -> int:
+    """Orders a cluster of stable poles must span to be a mode: max(3, ``min_fraction`` × n_orders)."""
+    return max(3, math.ceil(min_fraction * n_orders))
+
+
 def _select(table: dict, n_orders: int, tol_f: float, min_mac: float, min_fraction: float) -> list[np.ndarray]:
-    """Clusters of poles stable in frequency, damping and MAC that recur over many orders.
+    """Clusters of stable poles (:func:`_clusters`) spanning at least :func:`_min_orders` orders: the modes."""
+    needed = _min_orders(n_orders, min_fraction)
+    return [idx for idx in _clusters(table, tol_f, min_mac) if len(idx) >= needed]
+
+
+def _clusters(table: dict, tol_f: float, min_mac: float) -> list[np.ndarray]:
+    """Clusters of poles stable in frequency, damping and MAC, by frequency.
 
     Distance between two stable poles: max(|Δf|/(f̄ tol_f), (1 − MAC)/(1 − min_mac));
-    average-linkage clusters closer than 1; a cluster counts as a mode when it holds
-    poles from at least max(3, ``min_fraction`` × number of orders) orders. Returns, per
-    mode, the indices of its poles (one per order, the one nearest the cluster median).
+    average-linkage clusters closer than 1. Returns, per cluster, the indices of its
+    poles (one per order, the one nearest the cluster median).
     """
     from scipy.cluster.hierarchy import fcluster, linkage
     from scipy.spatial.distance import squareform
@@ -191,7 +223,6 @@ def _select(table: dict, n_orders: int, tol_f: float, min_mac: float, min_fracti
         dist = 0.5 * (dist + dist.T)
         np.fill_diagonal(dist, 0.0)
         labels = fcluster(linkage(squareform(dist, checks=False), method="average"), t=1.0, criterion="distance")
-    needed = max(3, math.ceil(min_fraction * n_orders))
     modes = []
     for label in np.unique(labels):
         members = stable[labels == label]
@@ -201,8 +232,7 @@ def _select(table: dict, n_orders: int, tol_f: float, min_mac: float, min_fracti
         for p in np.unique(table["order"][members]):
             at_p = members[table["order"][members] == p]
             chosen.append(at_p[np.argmin(np.abs(np.abs(table["pole"][at_p]) - centre))])
-        if len(chosen) >= needed:
-            modes.append(np.asarray(chosen))
+        modes.append(np.asarray(chosen))
     return sorted(modes, key=lambda idx: np.median(np.abs(table["pole"][idx])))
 
 
@@ -223,25 +253,38 @@ def stabilisation(
     A pole at order p is compared with the most similar pole at the previous order
     (smallest |Δf|/f + 1 − MAC; shapes from the pLSCF numerators at the pole): stable in
     frequency when |Δf|/f ≤ ``tol_f``, in damping when |Δζ|/ζ ≤ ``tol_zeta``, in shape
-    when MAC ≥ ``min_mac``. Poles of the lowest order are new.
+    when MAC ≥ ``min_mac``. Poles of the lowest order are new. Default ``orders``:
+    2 … 40/n_ref, n_ref the references (the smaller side of the FRF matrix, :func:`lscf`).
 
     **Returns:** a JSON-ready dict of lists, one entry per pole: ``order``,
     ``frequency_hz``, ``damping_ratio``, ``stable_frequency``, ``stable_damping``,
     ``stable_mac``; and ``orders``, ``criteria``.
     """
-    orders = _orders(orders, len(frfs.inputs))
+    orders = _orders(orders, min(len(frfs.outputs), len(frfs.inputs)))
+    _check_criteria(tol_f, tol_zeta, min_mac)
     f, h, usable, _ = _data(frfs, fmin, fmax, min_coherence)
     table = _stabilisation(f, h, usable, orders, tol_f, tol_zeta, min_mac, max_damping)
     return _diagram_json(table, orders, tol_f, tol_zeta, min_mac)
 
 
-def _orders(orders, n_in: int) -> list[int]:
+def _orders(orders, n_ref: int) -> list[int]:
+    """The model orders: ``orders`` sorted (at least 3), default 2 … 40/n_ref (n_ref: references)."""
     if orders is None:
-        return list(range(2, max(4, 40 // n_in) + 1))
+        return list(range(2, max(4, 40 // n_ref) + 1))
     orders = sorted({int(p) for p in orders})
     if len(orders) < 3 or orders[0] < 1:
         raise ValueError(f"a stabilisation diagram needs at least 3 positive model orders, got {orders}")
     return orders
+
+
+def _check_criteria(tol_f: float, tol_zeta: float, min_mac: float) -> None:
+    for name, value, ok, what in (
+        ("tol_f", tol_f, tol_f > 0, "positive"),
+        ("tol_zeta", tol_zeta, tol_zeta > 0, "positive"),
+        ("min_mac", min_mac, 0 < min_mac < 1, "in (0, 1)"),
+    ):
+        if not ok:
+            raise ValueError(f"stability criterion {name} = {value} must be {what}")
 
 
 def _diagram_json(table: dict, orders, tol_f, tol_zeta, min_mac, selected=None) -> dict:

@@ -8,7 +8,9 @@ residuals LR, UR in linear least squares. For proportional damping φ_out φ_in 
 (ω_d = Im s) with mass-normalised real modes φ: the shape of a mode is the dominant
 singular vector of its modal constants, scaled to unit modal mass through the driving
 points (an output that is also an input) when there are any, and real normal modes
-follow by :meth:`ModalData.real` (thesis §2.3.1). NumPy float64 on the host.
+follow by :meth:`ModalData.real` (thesis §2.3.1). By Maxwell reciprocity (H_ij = H_ji)
+the modal constants also give the shape at the inputs, so a shape covers every measured
+or excited DoF (:func:`_modal_data`). NumPy float64 on the host.
 """
 
 from __future__ import annotations
@@ -108,42 +110,70 @@ def _driving_points(outputs: Sensors, inputs: Sensors) -> list[tuple[int, int, f
     return pairs
 
 
-def _shape(q: np.ndarray, driving: list[tuple[int, int, float]]) -> tuple[np.ndarray, bool]:
-    """Shape ψ from the modal constants Q = φ_out φ_inᵀ (n_out, n_in) of one mode.
+def _union(outputs: Sensors, inputs: Sensors, driving: list[tuple[int, int, float]]) -> tuple[Sensors, np.ndarray]:
+    """The outputs followed by the inputs that are not outputs (a driving point appears once,
+    as its output); also the indices of those inputs."""
+    measured = {i for _, i, _ in driving}
+    extra = np.array([i for i in range(len(inputs)) if i not in measured], dtype=np.int64)
+    sensors = Sensors(
+        np.concatenate([outputs.nodes, inputs.nodes[extra]]),
+        np.concatenate([outputs.directions, inputs.directions[extra]]),
+        np.concatenate([outputs.rotational, inputs.rotational[extra]]),
+    )
+    return sensors, extra
 
-    ψ ∝ the dominant left singular vector u of Q; with driving points (o, i, ±1) the
-    scale c of ψ = c u follows from Q_{o', i} = ±ψ_{o'} ψ_o in least squares (unit modal
-    mass). Without a driving point, or when the mode has (almost) no motion at the
-    driving points (|u_o| < 1e-6 max |u|), the largest component is set to 1. Returns
-    (ψ, whether it has unit modal mass).
+
+def _shape(q: np.ndarray, driving: list[tuple[int, int, float]], extra: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Shape ψ at the outputs and at the inputs ``extra`` from the modal constants
+    Q = ψ_out ψ_inᵀ (n_out, n_in) of one mode.
+
+    ψ_out = c u, u the dominant left singular vector of Q (σ its singular value), and by
+    reciprocity ψ_in = Qᵀū/c (as uᴴu = 1). With driving points (o, i, ±1) the scale c
+    follows from Q_{o', i} = ±ψ_{o'} ψ_o in least squares (unit modal mass). Without a
+    driving point, or when the mode has (almost) no motion at the driving points
+    (|u_o| < 1e-6 max |u|), c = √σ (the relative scale of the outputs and ``extra`` is
+    then a guess) and the largest component is set to 1. Returns (ψ (n_out + len(extra),),
+    whether it has unit modal mass).
     """
-    u = np.linalg.svd(q, full_matrices=False)[0][:, 0]
+    left, sigma, _ = np.linalg.svd(q, full_matrices=False)
+    u, c, unit_mass = left[:, 0], np.sqrt(sigma[0]) + 0j, False
     if driving:
         outs = np.array([o for o, _, _ in driving])
         ins = np.array([i for _, i, _ in driving])
         sign = np.array([s for _, _, s in driving])
         if np.max(np.abs(u[outs])) >= 1e-6 * np.max(np.abs(u)):
             basis = u[:, None] * (sign * u[outs])[None, :]  # (n_out, n_driving)
-            c2 = np.vdot(basis, q[:, ins]) / np.vdot(basis, basis)
-            return np.sqrt(c2) * u, True
-    return u / u[np.argmax(np.abs(u))], False
+            c, unit_mass = np.sqrt(np.vdot(basis, q[:, ins]) / np.vdot(basis, basis)), True
+    psi = np.concatenate([c * u, q[:, extra].T @ u.conj() / c])
+    return (psi, True) if unit_mass else (psi / psi[np.argmax(np.abs(psi))], False)
 
 
 def _modal_data(frfs: FRFData, freqs, zetas, constants: np.ndarray, real: bool) -> tuple[ModalData, np.ndarray]:
     """ModalData from modal constants Q (m, n_out, n_in); also the complexity of each mode.
 
+    The shapes are at every measured or excited DoF (:func:`_union`: the outputs, then
+    the inputs not measured, their values by reciprocity, :func:`_shape`) when a driving
+    point ties the two sides together; without one, at the larger side (the inputs of a
+    roving-hammer test without an accelerometer at a hammer point, else the outputs).
     Generalised masses are 1 when every shape could be scaled through a driving point
     (real modes only: dataset 55 holds no mass for complex ones), else None.
     """
-    driving = _driving_points(frfs.outputs, frfs.inputs)
+    outputs, inputs = frfs.outputs, frfs.inputs
+    driving = _driving_points(outputs, inputs)
+    if driving:
+        sensors, extra = _union(outputs, inputs, driving)
+    else:
+        if len(inputs) > len(outputs):  # Q_r = ψ_out ψ_inᵀ, so Q_rᵀ has the inputs as rows
+            outputs, constants = inputs, np.swapaxes(constants, 1, 2)
+        sensors, extra = outputs, np.zeros(0, dtype=np.int64)
     shapes, complexity, scaled = [], [], True
     for q in constants:
-        psi, unit_mass = _shape(q, driving)
+        psi, unit_mass = _shape(q, driving, extra)
         shapes.append(psi)
         scaled &= unit_mass
-        complexity.append(1.0 - abs(np.sum(psi**2)) / np.sum(np.abs(psi) ** 2))
-    phi = np.column_stack(shapes) if shapes else np.zeros((len(frfs.outputs), 0), dtype=np.complex128)
-    modes = ModalData(freqs, phi, frfs.outputs, damping_ratios=zetas)
+        complexity.append(max(0.0, 1.0 - abs(np.sum(psi**2)) / np.sum(np.abs(psi) ** 2)))
+    phi = np.column_stack(shapes) if shapes else np.zeros((len(sensors), 0), dtype=np.complex128)
+    modes = ModalData(freqs, phi, sensors, damping_ratios=zetas)
     if real:
         modes = modes.real()
         if scaled:

@@ -52,7 +52,9 @@ def plot_stabilisation(report: Mapping, path: str | Path, title: str = "Stabilis
     damping, plus also in MAC (not damping), green square stable in all three; the poles
     that make up a selected mode are filled, and each selected mode has a dashed line at
     its frequency. The normalised mode indicator Σ|H|² (each FRF scaled to its maximum)
-    is drawn in grey on a log scale (right axis).
+    is drawn in grey on a log scale (right axis). The subtitle gives the stability
+    criteria; the report of a failed run (``IdentificationError.report``,
+    ``identified: False``) is titled "no mode selected".
 
     **Returns:** the path written. Raises ``ValueError`` when the report lacks the diagram.
     """
@@ -81,6 +83,18 @@ def plot_stabilisation(report: Mapping, path: str | Path, title: str = "Stabilis
         ax.axvline(m["frequency_hz"], color="tab:green", linestyle="--", linewidth=0.8, zorder=1)
     ax.set_xlabel("frequency (Hz)")
     ax.set_ylabel("model order")
+    orders = diagram.get("orders") or order.tolist()
+    if len(orders):  # every order of the run, also those without a pole in the band; whole-number ticks
+        from matplotlib.ticker import MaxNLocator
+
+        ax.set_ylim(min(orders) - 0.5, max(orders) + 0.5)
+        ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+    criteria = diagram.get("criteria", {})
+    if criteria:
+        title += (f"\nstable: |Δf|/f ≤ {criteria['tol_frequency']:g}, |Δζ|/ζ ≤ {criteria['tol_damping']:g}, "
+                  f"MAC ≥ {criteria['min_mac']:g}")
+    if report.get("identified") is False:
+        title += "; no mode selected"
     ax.set_title(title)
     indicator = report.get("indicator")
     if indicator:

@@ -14,7 +14,7 @@ from _frf_models import chain, frf_data, modes, receptance
 from scipy.optimize import brentq
 
 from identification import FRFData, ModalData, Sensors, read_uff, write_uff
-from identification._fitting import identify, lscf, lsfd, sdof_fit, stabilisation
+from identification._fitting import IdentificationError, identify, lscf, lsfd, sdof_fit, stabilisation
 from identification._plots import plot_stabilisation
 
 M5, K5 = chain([1.0, 1.2, 0.9, 1.1, 1.0], [4e4, 3e4, 3e4, 2.5e4, 2e4])
@@ -59,6 +59,8 @@ def test_identify_separated_modes_with_noise(chain5, identified):
     assert report["fit"]["nmse_percent_worst"] < 0.05  # the synthesis fits to the noise level
     assert all(m["n_orders_stable"] >= 25 for m in report["modes"])  # of 39 orders; measured 26–28
     assert report["coherence"] == "not given" and report["masked_bands_hz"] == []
+    assert report["identified"] is True and report["options"]["orders"] == list(range(2, 41))
+    assert report["reciprocity"] == {"used": False, "references": "inputs", "dofs_from_inputs": []}
     json.dumps(report)  # JSON-ready for the CLI
 
 
@@ -70,6 +72,17 @@ def test_stabilisation_diagram_is_written(tmp_path, identified):
     assert sorted(set(diagram["mode"])) == [0, 1, 2, 3, 4, 5]
     path = plot_stabilisation(json.loads(json.dumps(report)), tmp_path / "plots" / "stabilisation.png")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and path.stat().st_size > 20_000
+
+
+def test_the_report_of_a_failed_run_is_plotted(tmp_path, chain5):
+    *_, h = chain5
+    with pytest.raises(IdentificationError, match="no pole is stable over 3 of the orders 10–12") as info:
+        identify(frf_data(h, F5, OUT5, IN5), orders=[10, 11, 12])
+    report = json.loads(json.dumps(info.value.report))
+    assert report["identified"] is False and set(report["stabilisation"]["mode"]) == {0}
+    assert report["stabilisation"]["order"].count(12) == 5  # the poles found are all there: the 5 modes at order 12
+    path = plot_stabilisation(report, tmp_path / "failed.png")
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_plot_refuses_a_report_without_diagram(tmp_path):
@@ -223,6 +236,9 @@ def test_low_coherence_band_is_masked_with_a_warning_not_used(chain5):
         (lambda d: sdof_fit(d, [150.0]), "resonance guess 150.0 Hz is outside the data"),
         (lambda d: identify(FRFData(d.frequencies_hz, np.ones(d.values.shape), d.outputs, d.inputs, "receptance")),
          "no pole is stable over 10 of the orders 2–40"),
+        (lambda d: identify(d, min_mac=1.0), "stability criterion min_mac = 1.0 must be in (0, 1)"),
+        (lambda d: stabilisation(d, tol_f=-0.01), "stability criterion tol_f = -0.01 must be positive"),
+        (lambda d: identify(d, tol_zeta=0.0), "stability criterion tol_zeta = 0.0 must be positive"),
     ],
 )
 def test_fitting_errors(chain5, call, message):
