@@ -40,3 +40,12 @@ from ._sine import mode_indicator as mode_indicator
 from ._sine import sine_response as sine_response
 from ._uff import read_uff as read_uff
 from ._uff_write import write_uff as write_uff
+from ._uff_lines import read_trace_lines as read_trace_lines
+from ._geometry import GeometryMap as GeometryMap
+from ._geometry import map_test_geometry as map_test_geometry
+from ._time_data import FRFEstimate as FRFEstimate
+from ._time_data import TimeHistories as TimeHistories
+from ._time_data import frf_from_histories as frf_from_histories
+from ._time_data import plot_coherence as plot_coherence
+from ._time_data import read_dof_map as read_dof_map
+from ._fitting import IdentificationError as IdentificationError

@@ -66,7 +66,8 @@ _ORTHO_TOL = 1e-6  # axes written with 7 digits are still orthonormal
 _SI = {"code": 1, "description": "SI", "length": 1.0, "force": 1.0, "temperature": 1.0, "temperature_offset": 273.15}
 
 
-def read_uff(path: str | os.PathLike, *, length_units: str | None = None) -> dict:
+def read_uff(path: str | os.PathLike, *, length_units: str | None = None,
+             dof_map: dict[str, tuple[int, int]] | None = None) -> dict:
     """Read nodes, units, modes and FRFs from a universal file, in SI.
 
     ``length_units`` ("m", "mm", "cm" or "in"): the unit of the file's lengths when it
@@ -94,6 +95,13 @@ def read_uff(path: str | os.PathLike, *, length_units: str | None = None) -> dic
     - ``"frfs"``: :class:`FRFData` of all dataset-58 FRF records (function type 4),
       with the coherence records (type 6) when every FRF has one, or None. The kind
       follows the ordinate type: displacement, velocity, acceleration.
+    - ``"time"``: :class:`TimeHistories` of all dataset-58 time records (function type
+      1: force, displacement, velocity, acceleration channels, in SI), or None.
+
+    ``dof_map``: {channel name: (node, direction code)} for channel-only records (node
+    0, direction 0; the name is the response or reference entity name, or ID line 1 of
+    a time record); a row overrides the record's DoF. Without a row for such a channel,
+    or with a row naming no channel of the file, ``ValueError`` names the channels.
 
     Sensor directions are global: a component measured along a local axis of the
     node's displacement system becomes that axis in global coordinates.
@@ -124,7 +132,7 @@ def read_uff(path: str | os.PathLike, *, length_units: str | None = None) -> dic
     node_records = sorted(by_type.get(15, []) + by_type.get(2411, []), key=lambda record: record[0])
     nodes, frames = _nodes(node_records, units["length"], systems, path)
     modes = _modes(by_type.get(55, []), nodes, units, path)
-    frfs = _frfs(by_type.get(58, []), units, path)
+    frfs = _frfs(by_type.get(58, []), units, path, dof_map)
     if frames and modes is not None:
         modes = eqx.tree_at(lambda m: m.sensors, modes, _global(modes.sensors, frames))
     if frames and frfs is not None:
@@ -137,6 +145,7 @@ def read_uff(path: str | os.PathLike, *, length_units: str | None = None) -> dic
                     for label, sys in systems.items() if label != 0},
         "modes": modes,
         "frfs": frfs,
+        "time": _time_histories(by_type.get(58, []), units, path, dof_map),
     }
 
 
@@ -426,8 +435,9 @@ def _frf_factor(units: dict, response: int, excitation: int) -> float:
     return denominator / numerator
 
 
-def _frfs(records: list[tuple[int, dict]], units: dict, path: str) -> FRFData | None:
-    skipped = sorted({int(r["func_type"]) for _, r in records} - {_FRF, _COHERENCE})
+def _frfs(records: list[tuple[int, dict]], units: dict, path: str, dof_map: dict | None = None) -> FRFData | None:
+    records = _mapped(records, dof_map, path, (_FRF, _COHERENCE))  # channel-only records get their DoFs
+    skipped = sorted({int(r["func_type"]) for _, r in records} - {_FRF, _COHERENCE, _TIME})  # _TIME: _time_histories
     if skipped:
         warnings.warn(f"{path}: dataset-58 function type(s) {skipped} are not FRFs or coherence; ignored", stacklevel=3)
     groups: dict[int, dict[tuple[int, int, int, int], tuple[str, dict]]] = {_FRF: {}, _COHERENCE: {}}
@@ -439,7 +449,8 @@ def _frfs(records: list[tuple[int, dict]], units: dict, path: str) -> FRFData | 
             continue
         key = (int(r["rsp_node"]), int(r["rsp_dir"]), int(r["ref_node"]), int(r["ref_dir"]))
         if key[1] == 0 or key[3] == 0 or abs(key[1]) > 6 or abs(key[3]) > 6:
-            raise ValueError(f"{path}: dataset #{number}: direction codes {key[1]}, {key[3]} are not ±1..6")
+            unnamed = " (and no channel name for a DoF map)" if 0 in (key[1], key[3]) else ""
+            raise ValueError(f"{path}: dataset #{number}: direction codes {key[1]}, {key[3]} are not ±1..6{unnamed}")
         name = f"dataset #{number} ({_label(key[0], key[1])} / {_label(key[2], key[3])})"
         if key in groups[func]:
             raise ValueError(f"{path}: {name} repeats {groups[func][key][0]}")
@@ -491,3 +502,181 @@ def _frfs(records: list[tuple[int, dict]], units: dict, path: str) -> FRFData | 
         return FRFData(axis[1], values, sensors[0], sensors[1], kind[1], coherence=coh)
     except ValueError as err:
         raise ValueError(f"{path}: {err}") from err
+
+
+# Time histories (dataset 58, function type 1) and channel-only records -----------------
+#
+# A time record holds one channel: its DoF in record 6 (response node, direction), its
+# quantity in record 9 field 1 (ordinate specific data type), the sampling in record 7
+# (abscissa minimum and increment, or the abscissa values when spacing is uneven).
+# Channel-only exports write node 0, direction 0 and a channel name; the name read is the
+# response entity name (record 6 field 5; pyuff ``rsp_ent_name``), for a time record the
+# ID line 1 (``id1``) when that is blank or NONE; the excitation of an FRF is named by
+# the reference entity name (record 6 field 8, ``ref_ent_name``).
+
+_TIME = 1  # dataset 58 function type: time response
+_TIME_AXIS_TYPES = (0, 17)  # abscissa specific data type: unknown, time
+_TIME_QUANTITIES = {8: "displacement", 11: "velocity", 12: "acceleration", 9: "force", 13: "force"}
+_COMPLEX_ORDINATES = (5, 6)  # record 7 field 1: single and double precision complex
+_SAMPLING_RTOL = 1e-5  # the abscissa increment is written E13.5: 6 significant digits
+_NO_NAME = ("", "NONE")  # pyuff writes NONE for an absent entity name
+
+
+def _channel_name(record: dict, role: str) -> str:
+    """The channel name of a record's response (``"rsp"``) or reference (``"ref"``)."""
+    name = str(record.get(f"{role}_ent_name", "")).strip()
+    if name.upper() in _NO_NAME and role == "rsp" and int(record["func_type"]) == _TIME:
+        name = str(record.get("id1", "")).strip()
+    return "" if name.upper() in _NO_NAME else name
+
+
+def _mapped(records: list[tuple[int, dict]], dof_map: dict | None, path: str, funcs: tuple[int, ...]):
+    """The dataset-58 records with the DoFs of ``dof_map`` {channel: (node, direction)}
+    (a row overrides the DoF written in the record). Raises ``ValueError`` for a row that
+    names no channel of the file, and for a record of a function type in ``funcs`` whose
+    channel has no DoF (direction 0) and no row."""
+    from ._time_data import check_dof_map
+
+    dof_map = None if dof_map is None else check_dof_map(dof_map)
+    names, out, unmapped = set(), [], []
+    for number, r in records:
+        func = int(r["func_type"])
+        if func not in (_TIME, _FRF, _COHERENCE):
+            out.append((number, r))
+            continue
+        r = dict(r)
+        for role in ("rsp",) if func == _TIME else ("rsp", "ref"):
+            name = _channel_name(r, role)
+            names.add(name)
+            if dof_map and name in dof_map:
+                r[f"{role}_node"], r[f"{role}_dir"] = dof_map[name]
+            elif func in funcs and int(r[f"{role}_dir"]) == 0 and name:  # unnamed: refused by the reader
+                unmapped.append(repr(name))
+        out.append((number, r))
+    names.discard("")
+    if dof_map:
+        absent = [c for c in dof_map if c not in names]
+        if absent:
+            raise ValueError(f"{path}: DoF map rows name channel(s) {', '.join(map(repr, absent))} absent from the "
+                             f"file; its channels are {', '.join(map(repr, sorted(names))) or 'unnamed'}")
+    if unmapped:
+        unmapped = list(dict.fromkeys(unmapped))
+        listing = ", ".join(unmapped[:20]) + (f" and {len(unmapped) - 20} more" if len(unmapped) > 20 else "")
+        what = "time-history" if funcs == (_TIME,) else "FRF"
+        if dof_map:
+            raise ValueError(f"{path}: {what} channel(s) {listing} have no DoF in the file (direction 0) "
+                             "and no row in the DoF map")
+        raise ValueError(f"{path}: {what} records have no DoF (direction 0) for channel(s) {listing}: map "
+                         "the channels to DoFs (dof_map; jaxfem: --dof-map CSV with columns channel,node,direction)")
+    return out
+
+
+def _sampling(x: np.ndarray, where: str) -> tuple[float, float]:
+    """Sample interval and start time of an abscissa; ``ValueError`` when it is not uniform."""
+    n = len(x)
+    dt = (x[-1] - x[0]) / (n - 1)
+    if not (np.isfinite(dt) and dt > 0):
+        raise ValueError(f"{where}: abscissa from {x[0]} to {x[-1]} s is not increasing (record 7, fields 4-5)")
+    tol = 1e-3 * dt + _SAMPLING_RTOL * np.max(np.abs(x))  # uneven spacing: times written E13.5
+    off = np.abs(x - (x[0] + dt * np.arange(n)))
+    k = int(np.argmax(off))
+    if off[k] > tol:
+        raise ValueError(f"{where}: sample {k} at {x[k]} s is off the uniform time axis (Δt = {dt:.6g} s from "
+                         f"{x[0]} s): time histories need a constant sampling rate")
+    return float(dt), float(x[0])
+
+
+def _time_histories(records: list[tuple[int, dict]], units: dict, path: str, dof_map: dict | None = None):
+    """:class:`TimeHistories` of the dataset-58 time records (function type 1), in SI, or None.
+
+    Quantity from record 9 field 1: displacement (8), velocity (11), acceleration (12),
+    force (13 excitation, 9 reaction); other quantities (unknown 0, general 1, pressure,
+    strain, ...) are ignored with a ``UserWarning``. Values ÷ length for translational
+    motion, ÷ force for a force, ÷ force·length for a moment (rotational DoF), unchanged
+    for rotational motion (rad). Every channel must have the same number of samples, the
+    same sample interval (to 1e-5) and start time; fs = 1/Δt, taken as the nearest whole
+    Hz when within 1e-5 (the increment has 6 significant digits in the file).
+    """
+    from ._time_data import TimeHistories
+
+    records = _mapped(records, dof_map, path, (_TIME,))
+    channels, ignored = [], {}
+    first = None
+    for number, r in records:
+        if int(r["func_type"]) != _TIME:
+            continue
+        name = _channel_name(r, "rsp")
+        node, code = int(r["rsp_node"]), int(r["rsp_dir"])
+        where = f"dataset #{number}" + (f" (channel {name!r})" if name else "")
+        if not 1 <= abs(code) <= 6:
+            unnamed = " (and no channel name for a DoF map)" if code == 0 else ""
+            raise ValueError(f"{path}: {where}: response direction {code} is not ±1..6 (record 6, field 7){unnamed}")
+        spec = int(r["ordinate_spec_data_type"])
+        quantity = _TIME_QUANTITIES.get(spec)
+        if quantity is None:
+            ignored.setdefault(spec, []).append(number)
+            continue
+        if int(r["abscissa_spec_data_type"]) not in _TIME_AXIS_TYPES:
+            raise ValueError(f"{path}: {where}: abscissa specific data type {r['abscissa_spec_data_type']} is not "
+                             "time (17) (record 8, field 1)")
+        if int(r["ord_data_type"]) in _COMPLEX_ORDINATES or np.iscomplexobj(r["data"]):
+            raise ValueError(f"{path}: {where}: ordinate data type {r['ord_data_type']} is complex; a time history "
+                             "is real (record 7, field 1)")
+        x = np.asarray(r["x"], dtype=np.float64)
+        data = np.asarray(r["data"], dtype=np.float64)
+        if len(data) < 2 or len(x) != len(data):
+            raise ValueError(f"{path}: {where}: {len(data)} sample(s); a time history needs at least 2 "
+                             "(record 7, field 2)")
+        dt, t0 = _sampling(x, f"{path}: {where}")
+        if first is None:
+            first = (where, len(data), dt, t0)
+        elif len(data) != first[1]:
+            raise ValueError(f"{path}: {where} has {len(data)} samples but {first[0]} has {first[1]}: channels must "
+                             "be sampled together (record 7, field 2)")
+        elif not math.isclose(dt, first[2], rel_tol=_SAMPLING_RTOL):
+            raise ValueError(f"{path}: {where} samples at {_rate(dt):.6g} Hz (Δt = {dt:.6g} s) but {first[0]} at "
+                             f"{_rate(first[2]):.6g} Hz: mixed sampling rates (record 7, field 5)")
+        elif abs(t0 - first[3]) > 1e-3 * dt + _SAMPLING_RTOL * max(abs(t0), abs(first[3])):
+            raise ValueError(f"{path}: {where} starts at {t0} s but {first[0]} at {first[3]} s: channels must be "
+                             "sampled together (record 7, field 4)")
+        if quantity == "force":
+            factor = units["force"] * (units["length"] if abs(code) > 3 else 1.0)
+        else:
+            factor = units["length"] if abs(code) <= 3 else 1.0
+        data = data / factor
+        bad = np.flatnonzero(~np.isfinite(data))
+        if len(bad):
+            raise ValueError(f"{path}: {where}: value {data[bad[0]]} at sample {bad[0]} ({x[bad[0]]} s)")
+        channels.append((name, node, code, quantity, data))
+    if ignored:
+        listing = "; ".join(f"type {t}: datasets {', '.join(f'#{n}' for n in numbers)}"
+                            for t, numbers in sorted(ignored.items()))
+        warnings.warn(f"{path}: time records of quantities other than force, displacement, velocity or "
+                      f"acceleration (record 9 field 1 {listing}) ignored", stacklevel=3)
+    if not channels:
+        return None
+    name, node, code, quantity, data = zip(*channels)
+    try:
+        return TimeHistories(np.column_stack(data), _rate(first[2]), node, code, name, quantity, start_s=first[3])
+    except ValueError as err:
+        raise ValueError(f"{path}: {err}") from err
+
+
+def _rate(dt: float) -> float:
+    """1/Δt, or the nearest whole Hz when within the increment's 6 significant digits."""
+    fs = 1.0 / dt
+    return float(round(fs)) if round(fs) > 0 and abs(fs - round(fs)) <= _SAMPLING_RTOL * fs else fs
+
+
+def dataset58_function_types(path: str | os.PathLike) -> set[int]:
+    """Function types of the dataset-58 records of a universal file (headers only; a record
+    pyuff cannot parse is skipped): 1 time response, 4 FRF, 6 coherence, ..."""
+    uff = pyuff.UFF(os.fspath(path))
+    found = set()
+    for i, kind in enumerate(uff.get_set_types()):
+        if int(kind) == 58:
+            try:
+                found.add(int(uff.read_sets(i, header_only=True)["func_type"]))
+            except Exception:  # pyuff raises bare Exception for any parse failure; this is only a hint
+                continue
+    return found

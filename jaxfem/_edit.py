@@ -123,6 +123,21 @@ def add_rbe3(model: Model, grids: Sequence[int], xyz: Sequence[float] | None = N
     return _with_grid(model, ref, node, terms)
 
 
+def add_interpolated_grid(model: Model, grids: Sequence[int], weights: Sequence[float], xyz: Sequence[float],
+                          node: int | None = None) -> tuple[Model, int]:
+    """A new grid at ``xyz`` (m) whose six components are Σᵢ wᵢ uᵢ over ``grids``: a
+    dependent grid, no new DoFs (a measured point read by shape functions wᵢ, or by one
+    nearest grid with w = 1). Returns ``(model, grid id)``."""
+    rows = model.node_index(grids)
+    dofs = model.dofs
+    terms: dict[int, np.ndarray] = {}
+    for row, w in zip(rows, np.asarray(weights, dtype=np.float64).reshape(-1)):
+        for k, i in enumerate(dofs.index[row]):
+            if i < dofs.n_dof and np.any(dofs.coef[row, :, k] != 0.0):
+                terms[int(i)] = terms.get(int(i), np.zeros(COMPONENTS)) + w * dofs.coef[row, :, k]
+    return _with_grid(model, xyz, node, terms)
+
+
 def reconnect(model: Model, eids: Sequence[int], old: int, new: int) -> Model:
     """Elements ``eids`` (beams, rods, bushes, shells) attached to grid ``old`` are moved to grid ``new``."""
     old_row, new_row = model.node_index([old, new])

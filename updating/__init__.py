@@ -1,6 +1,7 @@
 """Model updating: correlation, parameters, residuals, solver, diagnosis, reports, CLI."""
 
 from ._correlation import Pairing as Pairing
+from ._correlation import aliasing as aliasing
 from ._correlation import automac as automac
 from ._correlation import comac as comac
 from ._correlation import cross_orthogonality as cross_orthogonality

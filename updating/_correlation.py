@@ -438,6 +438,38 @@ def pair_modes(
     )
 
 
+def aliasing(
+    phi_a: Inexact[ArrayLike, "n_dof n_a"],
+    phi_e: Inexact[ArrayLike, "n_dof n_e"],
+    f_a: Float[ArrayLike, " n_a"] | None = None,
+    *,
+    min_mac: float = 0.65,
+    max_automac: float = 0.9,
+) -> list[str]:
+    """Signs of spatial aliasing, one line each (host-side): pairs of test modes whose
+    AutoMAC (eq. 1.54 of the test shapes with each other) exceeds ``max_automac`` — the
+    sensors cannot tell them apart — and test modes with MAC ≥ ``min_mac`` against two or
+    more model modes, whose pairing then rests on the frequency window. Modes numbered
+    from 1; model frequencies ``f_a`` (Hz) named where given."""
+    if not 0.0 < max_automac <= 1.0:
+        raise ValueError(f"max_automac must be in (0, 1], got {max_automac}")
+    auto = np.asarray(automac(phi_e))
+    lines = []
+    for i, j in zip(*np.nonzero(np.triu(auto > max_automac, k=1))):
+        lines.append(f"test modes {i + 1} and {j + 1} have AutoMAC {auto[i, j]:.2f} > {max_automac:.2f}: the "
+                     "sensors do not tell them apart (spatial aliasing; add sensors or directions)")
+    m = np.asarray(mac(phi_a, phi_e))  # (n_a, n_e)
+    for j in range(m.shape[1]):
+        hits = np.flatnonzero(m[:, j] >= min_mac)
+        if len(hits) > 1:
+            hits = hits[np.argsort(-m[hits, j], kind="stable")]
+            named = ", ".join(f"{k + 1}" + ("" if f_a is None else f" ({np.asarray(f_a)[k]:.4g} Hz)")
+                              + f" MAC {m[k, j]:.2f}" for k in hits)
+            lines.append(f"test mode {j + 1} has MAC ≥ {min_mac:.2f} with {len(hits)} model modes ({named}): its "
+                         "pairing rests on the frequency window")
+    return lines
+
+
 def pair_modes_masked(
     f_a: Float[ArrayLike, " n_a"],
     phi_a: Inexact[ArrayLike, "n_dof n_a"],

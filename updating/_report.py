@@ -121,7 +121,7 @@ def _png(fig) -> str:
     return f'<img src="data:image/png;base64,{base64.b64encode(data).decode("ascii")}" alt="">'
 
 
-def write_report(diagnosis: dict, figures: dict, path) -> Path:
+def write_report(diagnosis: dict, figures: dict, path, links: dict | None = None) -> Path:
     """Write the diagnosis as one self-contained HTML file.
 
     **Arguments:** ``diagnosis``: dict with any of ``model``, ``test``, ``verdict``,
@@ -131,7 +131,9 @@ def write_report(diagnosis: dict, figures: dict, path) -> Path:
     path); names ``mac``, ``freq_dev``, ``localisation_surface`` (the indicator on the
     shells), ``localisation_groups``, ``localisation_nodes``, ``effects``, ``damping``,
     ``freq_dev_after``, ``mac_after``, ``convergence`` go to their section, others under
-    "More plots". Sections without data are left out.
+    "More plots". Sections without data are left out. ``links``: link text → file name
+    of pages written next to the report (the 3-D mode-shape views), listed after the
+    comparison.
     **Returns:** the path written.
     """
     d, figs, out = diagnosis, dict(figures), []
@@ -159,6 +161,10 @@ def write_report(diagnosis: dict, figures: dict, path) -> Path:
         id_list("unpaired_test", "Unpaired test modes"), id_list("unpaired_model", "Unpaired model modes"),
         "<h3>Baseline</h3>" + _scalars(d["baseline"]) if d.get("baseline") else "",
         *figs_of("mac", "freq_dev")])
+    section("Mode shapes in 3-D", [
+        "<ul>" + "".join(f'<li><a href="{html.escape(href)}">{html.escape(text)}</a></li>'
+                         for text, href in links.items()) + "</ul><p>Test and model shapes of each pair animated "
+        "side by side (interactive, one self-contained page each).</p>" if links else ""])
 
     sensors = sorted(d.get("sensors") or [], key=lambda s: _num(s.get("comac")))[:10]
     loc = d.get("localisation") or {}

@@ -8,6 +8,7 @@ from ._appropriate import appropriate
 from ._correlate import correlate
 from ._demo import demo
 from ._diagnose import diagnose
+from ._frf import frf
 from ._identify import identify
 from ._modes import modes
 from ._montecarlo import montecarlo
@@ -25,5 +26,5 @@ def _main() -> None:
     jax.config.update("jax_enable_x64", True)
 
 
-for _command in (modes, demo, correlate, update, diagnose, identify, appropriate, montecarlo):
+for _command in (modes, demo, correlate, update, diagnose, frf, identify, appropriate, montecarlo):
     app.command()(_command)

@@ -6,6 +6,7 @@ import json
 import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, NoReturn
 
@@ -72,24 +73,99 @@ def load_model(path: Path):
     return model
 
 
-def read_dataset(path: Path, key: str, what: str, dataset: int):
-    """``read_uff(path)[key]``; exit 2 naming the file when it cannot be read or holds no
-    such dataset."""
-    from identification import read_uff
+def read_dataset(path: Path, key: str, what: str, dataset: int, length_units: str | None = None,
+                 content: dict | None = None, dof_map: Path | None = None):
+    """``read_uff(path)[key]``; exit 2 naming the file (once) when it cannot be read or holds
+    no such dataset, and saying so when FRFs are asked of time histories or the reverse.
+    ``content``: a dict to receive everything the file holds. ``dof_map``: CSV
+    channel,node,direction for channel-only records (``--dof-map``)."""
+    from identification import read_dof_map, read_uff
+    from identification._uff import dataset58_function_types
 
+    def once(message) -> str:  # read_uff's messages begin with the path
+        return str(message) if str(path) in str(message) else f"{path}: {message}"
+
+    def time_not_frfs() -> None:
+        fail(f"{path} holds time histories (UFF 58, function type 1), not FRFs: make FRFs with "
+             f"`jaxfem frf {path} --force ...`")
+
+    mapping = None
+    if dof_map is not None:
+        try:
+            mapping = read_dof_map(dof_map)
+        except (ValueError, OSError) as err:
+            fail(f"--dof-map: {err}")
     with echoed_warnings():
         try:
-            data = read_uff(path)[key]
+            everything = read_uff(path, length_units=length_units, dof_map=mapping)
         except (ValueError, OSError) as err:
-            fail(f"cannot read {what} {path}: {err}")
+            if key == "frfs" and isinstance(err, ValueError):
+                types = dataset58_function_types(path)
+                if 1 in types and 4 not in types:
+                    time_not_frfs()
+            fail(f"cannot read {what}: {once(err)}")
+    data = everything[key]
+    if content is not None:
+        content.update(everything)
     if data is None:
+        if key == "frfs" and everything.get("time") is not None:
+            time_not_frfs()
+        if key == "time" and everything.get("frfs") is not None:
+            fail(f"{path} holds FRFs (UFF 58, function type 4), not time histories: give it to the commands "
+                 "that read FRFs (jaxfem identify)")
         fail(f"{path}: no {what} (UFF dataset {dataset}) in the file")
     return data
 
 
-def load_test(path: Path):
-    """The measured modes of a universal file, as real normal modes."""
-    return read_dataset(path, "modes", "mode shapes", 55).real()
+def load_test(path: Path, length_units: str | None = None, content: dict | None = None):
+    """The measured modes of a universal file, as real normal modes (``content``: as
+    :func:`read_dataset`)."""
+    return read_dataset(path, "modes", "mode shapes", 55, length_units, content).real()
+
+
+TestUnitsOpt = Annotated[str | None, typer.Option(
+    "--test-units", metavar="m|mm|cm|in",
+    help="length unit of the test file's coordinates and shapes when it has no units dataset (164); overrides one")]
+MapOpt = Annotated[str, typer.Option(
+    "--map", metavar="auto|id|nearest|interpolate",
+    help="how test nodes read the model: by grid id, at the nearest grid, or interpolated in the nearest shell "
+         "element; auto: by id when every test node is a model grid at the same place, else nearest")]
+MaxDistanceOpt = Annotated[float | None, typer.Option(
+    "--max-distance", metavar="M", help="largest accepted test-node-to-model distance, m (default 5 % of the "
+                                        "model's size)")]
+AlignOpt = Annotated[bool, typer.Option(
+    "--align", help="move the test geometry onto the model first (rigid least-squares fit on matched points)")]
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """The test-geometry options of a command (``--map``, ``--max-distance``,
+    ``--test-units``, ``--align``)."""
+
+    map: str = "auto"
+    max_distance: float | None = None
+    test_units: str | None = None
+    align: bool = False
+
+
+def map_geometry(model, test, nodes: dict, units: dict, test_path: Path, geometry: Geometry):
+    """The model with the test nodes on it and the test data renamed onto them
+    (:func:`identification.map_test_geometry`); the mapping printed; exit 2 on implausible
+    geometry naming the option to use."""
+    from identification import map_test_geometry
+
+    with echoed_warnings():
+        try:
+            model, gmap = map_test_geometry(
+                model, nodes, set(test.sensors.nodes.tolist()), method=geometry.map,
+                max_distance=geometry.max_distance, align_frames=geometry.align,
+                length_units_given=geometry.test_units is not None,
+                length_factor=units["length"])
+        except ValueError as err:
+            fail(f"test data {test_path}: {err}")
+    for line in gmap.lines():
+        typer.echo(line)
+    return model, gmap.apply(test), gmap
 
 
 def check_solver(solver: str | None) -> str:
@@ -99,10 +175,12 @@ def check_solver(solver: str | None) -> str:
     return solver or "auto"
 
 
-def load_inputs(model_path: Path, test_path: Path, params_path: Path | None = None, solver: str | None = None):
-    """Model, real test modes, observation matrix and the parameter set (None without a
-    file; ``solver``, from ``--solver``, overrides its eigensolver), checked against each
-    other; on bad input exit 2 naming the file."""
+def load_inputs(model_path: Path, test_path: Path, params_path: Path | None = None, solver: str | None = None,
+                geometry: Geometry = Geometry()):
+    """Model (with the test nodes mapped onto it, :func:`map_geometry`), real test modes,
+    observation matrix, the parameter set (None without a file; ``solver``, from
+    ``--solver``, overrides its eigensolver) and the :class:`identification.GeometryMap`,
+    checked against each other; on bad input exit 2 naming the file."""
     from dataclasses import replace
 
     from identification import observation_matrix
@@ -119,7 +197,9 @@ def load_inputs(model_path: Path, test_path: Path, params_path: Path | None = No
         if solver is not None:
             params = replace(params, options=replace(params.options, eigensolver=solver))
     model = load_model(model_path)
-    test = load_test(test_path)
+    content: dict = {}
+    test = load_test(test_path, geometry.test_units, content)
+    model, test, gmap = map_geometry(model, test, content["nodes"], content["units"], test_path, geometry)
     try:
         C = observation_matrix(model, test.sensors)[0]
     except ValueError as err:  # unknown sensor grids
@@ -129,7 +209,7 @@ def load_inputs(model_path: Path, test_path: Path, params_path: Path | None = No
             parameterise(model, params)
         except ValueError as err:
             fail(f"{params_path}: {err}")
-    return model, test, C, params
+    return model, test, C, params, gmap
 
 
 def mode_labels(freqs) -> list[str]:
@@ -149,12 +229,15 @@ def print_pairing(p) -> None:
         typer.echo(f"warning: {line}", err=True)
 
 
-def frf_prediction(path: Path, test, initial, updated, plots: Path | None) -> dict:
+def frf_prediction(path: Path, test, initial, updated, plots: Path | None, gmap=None) -> dict:
     """Measured FRFs against the initial and updated model's predictions (FRAC, dB;
-    thesis §4.2.5.3), printed per pair; ``plots``: also ``frf.png`` of the first pair."""
+    thesis §4.2.5.3), printed per pair; ``plots``: also ``frf.png`` of the first pair;
+    ``gmap``: the test geometry's map (:func:`map_geometry`) applied to the FRFs' DoFs."""
     from .._prediction import frf_correlation, predict_frf
 
     frf = read_dataset(path, "frfs", "FRFs", 58)
+    if gmap is not None:
+        frf = gmap.apply(frf)
     ratios = np.asarray(test.damping_ratios)
     zeta = float(np.mean(ratios[ratios > 0])) if np.any(ratios > 0) else 0.01
     try:

@@ -21,6 +21,11 @@ from ._common import (
     SolverOpt,
     check_solver,
     write_json,
+    AlignOpt,
+    Geometry,
+    MapOpt,
+    MaxDistanceOpt,
+    TestUnitsOpt,
 )
 
 
@@ -29,20 +34,31 @@ def correlate(
     test_path: TestArg,
     json_out: JsonOut,
     plots: PlotsOut = None,
+    report: Annotated[Path | None, typer.Option(
+        "--report", help="directory for shapes.html: test and model mode shapes of every pair animated in 3-D "
+                         "(one self-contained HTML file)")] = None,
     n: Annotated[int | None, typer.Option("-n", "--n-modes",
                                           help="model modes to compute (default: twice the test modes, at least 6 spare; as n_model_modes)")] = None,
     min_mac: Annotated[float, typer.Option("--min-mac", help="pairing threshold on MAC")] = 0.65,
     max_freq_dev: Annotated[float, typer.Option("--max-freq-dev", help="pairing threshold on |Δf| (fraction)")] = 0.30,
     solver: SolverOpt = None,
+    map_method: MapOpt = "auto",
+    max_distance: MaxDistanceOpt = None,
+    test_units: TestUnitsOpt = None,
+    align: AlignOpt = False,
+    max_automac: Annotated[float, typer.Option(
+        "--max-automac", help="warn of spatial aliasing when two test modes have an AutoMAC above this")] = 0.9,
 ) -> None:
-    """Correlate model and test modes: pairing by MAC and Δf, AutoMAC, COMAC."""
+    """Correlate model and test modes: pairing by MAC and Δf, AutoMAC, COMAC; warnings of
+    spatial aliasing."""
     import jaxfem
 
     from .. import _correlation as corr
     from .._solve import n_model_modes
 
     check_plots(plots)
-    model, test, C, _ = load_inputs(model_path, test_path)
+    model, test, C, _, gmap = load_inputs(model_path, test_path,
+                                          geometry=Geometry(map_method, max_distance, test_units, align))
     ne = test.n_modes
     n_model = n_model_modes(model, ne, n)
     lam, phi = jaxfem.modes(model, n_model, solver=check_solver(solver))
@@ -53,6 +69,10 @@ def correlate(
     except ValueError as err:
         fail(str(err))
     auto = np.asarray(corr.automac(phi_e))
+    try:
+        aliasing = corr.aliasing(phi_a, phi_e, f_a, min_mac=pairing.min_mac, max_automac=max_automac)
+    except ValueError as err:
+        fail(f"--max-automac: {err}")
     labels = test.sensors.labels
     if pairing.test.size:
         co = np.asarray(corr.comac(phi_a[:, pairing.model], phi_e[:, pairing.test]))
@@ -60,7 +80,8 @@ def correlate(
     else:
         comac_rows = []
     result = {"model": str(model_path), "test": str(test_path), "n_model_modes": n_model,
-              **pairing.to_json(), "automac": auto.tolist(), "comac": comac_rows}
+              **pairing.to_json(), "automac": auto.tolist(), "comac": comac_rows,
+              "test_geometry": gmap.to_json(), "aliasing": aliasing}
 
     typer.echo(f"model {model_path}: {model.n_dof} DoFs, {n_model} modes; test {test_path}: "
                f"{ne} modes at {len(labels)} sensors")
@@ -76,6 +97,8 @@ def correlate(
     typer.echo("COMAC per sensor (lowest first):")
     for row in comac_rows:
         typer.echo(f"  {row['sensor']:>12} {row['value']:.3f}")
+    for line in aliasing:
+        typer.echo(f"warning: {line}", err=True)
     write_json(json_out, result)
     if plots is not None:
         from .._plots import plot_freq_dev, plot_mac
@@ -86,3 +109,14 @@ def correlate(
             plot_freq_dev(pairing.per_test()[0], None, mode_labels(f_e), plots / "freq_dev.png"),
         ]
         typer.echo("wrote " + ", ".join(str(w) for w in written))
+    if report is not None:
+        from .._shape_view import correlation_view, test_geometry
+
+        try:
+            nodes, lines, names = test_geometry(test_path, gmap)
+            view = correlation_view(report / "shapes.html", model=model, phi=np.asarray(phi), test=test,
+                                    at_sensors=phi_a, pairing=pairing, test_nodes=nodes, test_lines=lines,
+                                    names=names, title=f"mode shapes: {test_path.name} vs {model_path.name}")
+        except (ValueError, OSError) as err:
+            fail(f"--report {report}: {err}")
+        typer.echo(f"wrote {view}")

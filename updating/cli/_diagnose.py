@@ -8,8 +8,8 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from ._common import (ModelArg, SolverOpt, TestArg, check_plots, check_solver, fail, frf_prediction, load_inputs,
-                      load_test, mode_labels, write_json)
+from ._common import (AlignOpt, Geometry, MapOpt, MaxDistanceOpt, ModelArg, SolverOpt, TestArg, TestUnitsOpt,
+                      check_plots, check_solver, fail, frf_prediction, load_inputs, load_test, mode_labels, write_json)
 
 
 def _fmt(x, spec: str) -> str:
@@ -126,10 +126,50 @@ def _figures(rep: dict, diag, confirmation, model, test, report: Path) -> dict:
     return figures
 
 
+def _shape_views(diag, confirmation, test, gmap, params, options, report: Path) -> dict[str, str]:
+    """The 3-D views of test and model mode shapes next to the report: the initial model
+    (``shapes.html``) and, with an effect added, the updated model (``shapes_after.html``),
+    each paired anew with the parameter file's thresholds; {link text: file name}. A view
+    that cannot be made is a warning, not the loss of the report."""
+    import jaxfem
+    from identification import observation_matrix
+
+    from .._correlation import pair_modes
+    from .._shape_view import correlation_view, test_geometry
+    from .._solve import n_model_modes
+
+    limits = {} if params is None else {"min_mac": params.options.min_mac,
+                                        "max_freq_dev": params.options.max_freq_dev}
+    models = [("the initial model", "shapes.html", diag.model)]
+    if confirmation is not None:
+        models.append(("the model with the effect, updated", "shapes_after.html", confirmation.after.model))
+    solver = options.eigensolver
+    if solver == "auto" and params is not None:  # as diagnose: the parameter file's eigensolver
+        solver = params.options.eigensolver
+    f_e, phi_e = np.asarray(test.frequencies_hz), np.asarray(test.shapes)
+    views = {}
+    try:
+        nodes, lines, names = test_geometry(None, gmap)
+        for label, name, m in models:
+            lam, phi = jaxfem.modes(m, n_model_modes(m, len(f_e)), solver=solver)
+            at = observation_matrix(m, test.sensors)[0] @ np.asarray(phi)
+            pairing = pair_modes(np.asarray(jaxfem.frequencies_hz(lam)), at, f_e, phi_e, **limits)
+            path = correlation_view(report / name, model=m, phi=np.asarray(phi), test=test, at_sensors=at,
+                                    pairing=pairing, test_nodes=nodes, test_lines=lines, names=names,
+                                    title=f"mode shapes: test vs {label}")
+            views[f"test vs {label} ({len(pairing.test)} pairs)"] = name
+            typer.echo(f"wrote {path}")
+    except ValueError as err:
+        typer.echo(f"warning: 3-D mode-shape view not written: {err}", err=True)
+    return views
+
+
 def diagnosis(model, test, params, *, model_name: str, test_name: str, json_out: Path | None,
-              report: Path | None, frf_path: Path | None = None, options=None, reference: dict | None = None) -> dict:
+              report: Path | None, frf_path: Path | None = None, options=None, reference: dict | None = None,
+              gmap=None) -> dict:
     """Diagnose, add the winning effect, update, print, write JSON and the HTML report
-    (``reference``: the reference state's file and per-mode change, when the test is a change)."""
+    (``reference``: the reference state's file and per-mode change, when the test is a change;
+    ``gmap``: the test geometry's map onto the model)."""
     from .._diagnose import DiagnoseOptions, add_effect, diagnose
     from .._report import json_safe, write_report
 
@@ -146,6 +186,8 @@ def diagnosis(model, test, params, *, model_name: str, test_name: str, json_out:
     rep = dict(diag.to_json(), model=model_name, test=test_name)
     if reference is not None:
         rep["reference"] = reference
+    if gmap is not None:
+        rep["test_geometry"] = gmap.to_json()
     _print_diagnosis(rep)
     confirmation = None
     if diag.best is not None:
@@ -160,13 +202,14 @@ def diagnosis(model, test, params, *, model_name: str, test_name: str, json_out:
         rep["after"] = confirmation.to_json()
         _print_confirmation(rep["after"])
     if frf_path is not None and confirmation is not None:
-        rep["frf"] = frf_prediction(frf_path, test, model, confirmation.after.model, report)
+        rep["frf"] = frf_prediction(frf_path, test, model, confirmation.after.model, report, gmap)
     if json_out is not None:
         write_json(json_out, rep)
     if report is not None:
         report.mkdir(parents=True, exist_ok=True)
         figures = _figures(rep, diag, confirmation, model, test, report)
-        typer.echo(f"wrote {write_report(json_safe(rep), figures, report / 'report.html')}")
+        views = _shape_views(diag, confirmation, test, gmap, params, options, report)
+        typer.echo(f"wrote {write_report(json_safe(rep), figures, report / 'report.html', links=views)}")
     return rep
 
 
@@ -185,6 +228,10 @@ def diagnose(
         "--noise-damping", help="expected error of measured damping ratios, % of each ratio (1σ); used when TEST "
                                 "has damping ratios of at least four modes")] = 10.0,
     solver: SolverOpt = None,
+    map_method: MapOpt = "auto",
+    max_distance: MaxDistanceOpt = None,
+    test_units: TestUnitsOpt = None,
+    align: AlignOpt = False,
     reference_path: Annotated[Path | None, typer.Option(
         "--reference", metavar="HEALTHY.uff", exists=True, dir_okay=False,
         help="modes of a reference state (e.g. before the damage) at the same sensors: diagnose the change "
@@ -200,27 +247,29 @@ def diagnose(
     from .._diagnose import DiagnoseOptions
 
     check_plots(report)
-    model, test, _, params = load_inputs(model_path, test_path, params_path, solver)
+    model, test, _, params, gmap = load_inputs(model_path, test_path, params_path, solver,
+                                               Geometry(map_method, max_distance, test_units, align))
     change = None
     if reference_path is not None:
-        test, change = _relative(model, test, reference_path, check_solver(solver) or "auto")
+        test, change = _relative(model, test, reference_path, check_solver(solver) or "auto", gmap)
     if not (noise_freq > 0 and noise_shape > 0 and noise_damping > 0):
         fail("--noise-freq, --noise-shape and --noise-damping must be positive (percent)")
     options = DiagnoseOptions(noise_freq=noise_freq / 100, noise_shape=noise_shape / 100,
                               noise_damping=noise_damping / 100, eigensolver=check_solver(solver), ray=ray)
     diagnosis(model, test, params, model_name=model_path.name, test_name=test_path.name, json_out=json_out,
               report=report, frf_path=frf_path, options=options,
-              reference=None if change is None else {"file": reference_path.name, "modes": change})
+              reference=None if change is None else {"file": reference_path.name, "modes": change}, gmap=gmap)
 
 
-def _relative(model, test, reference_path: Path, solver: str):
+def _relative(model, test, reference_path: Path, solver: str, gmap):
     """The change from the reference test to the test, on the model's modes
-    (:func:`updating.relative_to`); the per-mode change printed."""
+    (:func:`updating.relative_to`); the per-mode change printed. The reference is read
+    at the test's nodes (``gmap``)."""
     from identification import observation_matrix
 
     from .._reference import relative_to
 
-    reference = load_test(reference_path)
+    reference = gmap.apply(load_test(reference_path))
     try:
         observation_matrix(model, reference.sensors)
         data, rows = relative_to(model, test, reference, solver=solver)

@@ -18,6 +18,11 @@ from ._common import (
     fail,
     frf_prediction,
     load_inputs,
+    AlignOpt,
+    Geometry,
+    MapOpt,
+    MaxDistanceOpt,
+    TestUnitsOpt,
     mode_labels,
     SolverOpt,
     write_json,
@@ -125,6 +130,10 @@ def update(
         help="add a physical effect and update its parameters too, e.g. joint:node=6001, "
              "added_mass:node=2015, frequency_dependent_stiffness:pid=41 (repeatable)")] = None,
     solver: SolverOpt = None,
+    map_method: MapOpt = "auto",
+    max_distance: MaxDistanceOpt = None,
+    test_units: TestUnitsOpt = None,
+    align: AlignOpt = False,
 ) -> None:
     """Update model parameters so that the model modes match the test modes.
 
@@ -139,7 +148,8 @@ def update(
     from .._solve import update as run_update
 
     check_plots(plots)
-    model, test, _, params = load_inputs(model_path, test_path, params_path, solver)
+    model, test, _, params, gmap = load_inputs(model_path, test_path, params_path, solver,
+                                               Geometry(map_method, max_distance, test_units, align))
     last = {}
 
     def progress(it) -> None:
@@ -159,12 +169,12 @@ def update(
         fail(f"{params_path}: {err}")
 
     result = {"model": str(model_path), "test": str(test_path), "parameters_file": str(params_path),
-              **res.to_json()}
+              **res.to_json(), "test_geometry": gmap.to_json()}
     if confirmation is not None:
         result["add_effect"] = confirmation.to_json()
     _print_result(result, res, params.options)
     if frf_path is not None:
-        result["frf"] = frf_prediction(frf_path, test, model, res.model, plots)
+        result["frf"] = frf_prediction(frf_path, test, model, res.model, plots, gmap)
     _print_pairings(result, res)
     write_json(json_out, result)
     if plots is not None:
