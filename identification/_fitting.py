@@ -104,7 +104,8 @@ def identify(
     (the arguments as used), ``band_hz``, ``n_lines``, ``coherence`` ("given"/"not
     given"), ``masked_bands_hz``, ``orders``, ``reciprocity`` (``references``: "inputs"
     or "outputs"; ``dofs_from_inputs``: the DoFs whose shapes come from the inputs'
-    side; ``used``: either applies), ``sensors`` (labels), per mode (``modes``) the
+    side; ``used``: either applies), ``sensors`` (labels), ``shapes`` (per mode, the
+    values at ``sensors`` in full precision; complex: ``real``, ``imag``), per mode (``modes``) the
     frequency, damping, the number of orders it is stable over, the spread (std) of f
     and ζ across them and its complexity 1 − |Σψ²|/Σ|ψ|² (0: real, 1: circular), the
     fit (``fit``: normalised mean-square error % of the synthesis, mean and worst FRF),
@@ -185,6 +186,9 @@ def identify(
     report["reciprocity"]["dofs_from_inputs"] = from_inputs
     report["reciprocity"]["used"] = report["reciprocity"]["used"] or bool(from_inputs)
     report["sensors"] = modes.sensors.labels
+    shapes = np.asarray(modes.shapes)
+    report["shapes"] = (shapes.T.tolist() if not np.iscomplexobj(shapes)
+                        else [{"real": c.real.tolist(), "imag": c.imag.tolist()} for c in shapes.T])
     report["real_modes"] = real
     report["mass_normalised"] = modes.generalised_masses is not None
     report["modes"] = [

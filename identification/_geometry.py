@@ -5,15 +5,19 @@ test node a place in the model, as the thesis maps each sensor to the nearest FE
 (§5.2.2), so that the test data keep their own node ids:
 
 - ``"id"``: test node ids are model grid ids (today's test files written from the model);
-- ``"nearest"``: a test node reads the model grid closest to its point;
+- ``"nearest"``: a test node is rigidly linked to the model grid closest to its point,
+  u = u_g + θ_g × (x − x_g) (the GRID + RBE2 an engineer would add by hand: a sensor on a
+  beam's surface sees its torsion);
 - ``"interpolate"``: it reads Σ Nᵢ uᵢ over the nearest shell element (its shape
-  functions at the projected point, :func:`jaxfem.locate_sensors`);
+  functions at the projected point, :func:`jaxfem.locate_sensors`), plus Σ Nᵢ θᵢ times
+  its offset from the surface;
 - ``"auto"``: ``id`` when every test node is a model grid at the same place (or the file
   has no coordinates), else ``nearest``.
 
 Each mapped test node becomes a dependent grid of the model at its point
-(:func:`jaxfem._edit.add_interpolated_grid`, no new DoFs), under the test node's id, or a
-new id when that id is a model grid elsewhere; the measured data are renamed to it. So
+(:func:`jaxfem._edit.add_interpolated_grid`, no new DoFs), under the test node's id, or,
+when that id is a model grid elsewhere, the id plus the power of ten above every model and
+test id (test node 1 beside grid 6001 reads as 10001); the measured data are renamed to it. So
 every later step (pairing, residuals, effects, FRF prediction) reads the test where it was
 measured.
 
@@ -29,7 +33,6 @@ directions too.
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import dataclass, field
 
 import equinox as eqx
@@ -49,6 +52,7 @@ _UNIT_RTOL = 0.3  # an extent ratio within 30 % of a unit factor is suspicious
 _SAME_PLACE = 1e-6  # × model size: a test node at a model grid of the same id
 MAX_DISTANCE = 0.05  # × model size (bounding-box diagonal): default plausible test-to-model distance ...
 MAX_SPACINGS = 1.5  # ... or × the median grid spacing, whichever is larger (a coarse mesh's nearest grid)
+_LISTED = 20  # test nodes listed by distance in the printed summary (all are in the JSON)
 _ALIGN_ITERATIONS = 100
 _ALIGN_TOL = 1e-12  # × model size: the alignment has converged when the RMS changes less
 
@@ -156,7 +160,8 @@ class GeometryMap:
         return eqx.tree_at(lambda m: m.sensors, data, move(data.sensors))
 
     def lines(self) -> list[str]:
-        """The summary a user reads: method, worst distance, renamed ids, alignment."""
+        """The summary a user reads: method, worst distance, alignment, renamed ids, and
+        the test nodes by distance, farthest first (at most 20)."""
         node, worst = self.worst
         out = [f"test geometry: {len(self.nodes)} test nodes mapped by {self.method}"
                + (f" ({self.note})" if self.note else "")
@@ -169,6 +174,12 @@ class GeometryMap:
         if self.renamed:
             out.append("test nodes whose ids are model grids elsewhere read as new grids: "
                        + ", ".join(f"{a} → {b}" for a, b in sorted(self.renamed.items())))
+        if self.method != "id" and len(self.nodes):
+            order = np.argsort(-self.distance, kind="stable")
+            shown = order if len(order) <= _LISTED else order[:_LISTED]
+            out.append(f"{'test node':>10}  {'reads':<28} {'distance [m]':>12}"
+                       + ("" if len(shown) == len(order) else f"   ({len(shown)} farthest of {len(order)})"))
+            out += [f"{self.nodes[i]:>10}  {self.reads[i]:<28} {self.distance[i]:>12.4g}" for i in shown]
         return out
 
     def to_json(self) -> dict:
@@ -209,7 +220,6 @@ def map_test_geometry(
 
     ``ValueError`` naming the option to use: test ids not in the model without
     coordinates, coordinates in other units, a test node farther than ``max_distance``.
-    ``UserWarning`` naming test nodes that read the same grid with ``nearest``.
     """
     if method not in MAP_METHODS:
         raise ValueError(f"--map {method!r}: use one of {', '.join(MAP_METHODS)}")
@@ -275,17 +285,7 @@ def map_test_geometry(
             f"{len(far)} test node(s) lie farther than {limit:.3g} m from the model{why}"
             + f"; the worst, test node {nodes[w]}, is {located.distance[w]:.3g} m from {located._where(w)}: check the "
             "test file's units and frame (--test-units, --align) or accept the distances with --max-distance")
-    if method == "nearest":
-        shared: dict[int, list[int]] = {}
-        for g, grid in zip(nodes.tolist(), located.grids[:, 0].tolist()):
-            shared.setdefault(grid, []).append(g)
-        shared = {grid: g for grid, g in shared.items() if len(g) > 1}
-        if shared:
-            warnings.warn("test nodes read the same model grid (the mesh is coarser than the test grid; --map "
-                          "interpolate reads shell elements between grids): "
-                          + "; ".join(f"grid {grid}: test nodes {g}" for grid, g in sorted(shared.items())),
-                          stacklevel=2)
-    next_id = max(int(ids.max(initial=0)), int(nodes.max(initial=0))) + 1
+    offset = 10 ** len(str(max(int(ids.max(initial=0)), int(nodes.max(initial=0)))))  # 1 → 10001 beside grid 6001
     renamed: dict[int, int] = {}
     grids = []
     for s, g in enumerate(nodes.tolist()):
@@ -296,8 +296,7 @@ def map_test_geometry(
             continue
         new = g
         if g in known:
-            new, next_id = next_id, next_id + 1
-            renamed[g] = new
+            new = renamed[g] = offset + g
         model, _ = add_interpolated_grid(model, read.tolist(), weights.tolist(), xyz[s], new)
         grids.append(new)
     reads = tuple(located._where(s) for s in range(len(nodes)))

@@ -61,6 +61,10 @@ _FRF_CODES = {kind: code for code, kind in _FRF_SPEC_TYPES.items()}
 _FORCE_SPEC_TYPES = (0, 9, 13)  # unknown (a type-4 function is per unit force), reaction, excitation
 _FRF, _COHERENCE = 4, 6  # dataset 58 function types
 _NORMAL_MODE, _COMPLEX_MODES = 2, (3, 7)  # dataset 55 analysis types
+_READ = (15, 18, 55, 58, 164, 2411, 2420)
+# header (151), model header (2400), elements (2412), trace lines (82, read_trace_lines), function
+# qualifiers of dataset 58 (1858), groups (2429, 2467): they describe, they hold no measured data
+_DESCRIPTIVE = (82, 151, 1858, 2400, 2412, 2429, 2467)
 _SYSTEM_TYPES = {0: "rectangular", 1: "cylindrical", 2: "spherical"}
 _ORTHO_TOL = 1e-6  # axes written with 7 digits are still orthonormal
 _SI = {"code": 1, "description": "SI", "length": 1.0, "force": 1.0, "temperature": 1.0, "temperature_offset": 273.15}
@@ -127,6 +131,15 @@ def read_uff(path: str | os.PathLike, *, length_units: str | None = None,
     by_type: dict[int, list[tuple[int, dict]]] = {}
     for number, record in records:
         by_type.setdefault(int(record["type"]), []).append((number, record))
+    unread = {kind: [n for n, _ in records] for kind, records in by_type.items()
+              if kind not in _READ and kind not in _DESCRIPTIVE}
+    if unread:
+        listing = "; ".join(f"type {kind} (#{', #'.join(str(n) for n in numbers[:5])}"
+                            + (f" and {len(numbers) - 5} more" if len(numbers) > 5 else "") + ")"
+                            for kind, numbers in sorted(unread.items()))
+        warnings.warn(f"{path}: datasets not read, ignored: {listing}; jaxfem reads modes from dataset 55 and FRFs "
+                      "and time histories from 58" + (" (2414 holds analysis results: export them as 55)"
+                                                      if 2414 in unread else ""), stacklevel=2)
     units = _units(by_type.get(164, []), path, length_units)
     systems = _systems(by_type.get(18, []), by_type.get(2420, []), units["length"], path)
     node_records = sorted(by_type.get(15, []) + by_type.get(2411, []), key=lambda record: record[0])
@@ -138,6 +151,11 @@ def read_uff(path: str | os.PathLike, *, length_units: str | None = None,
     if frames and frfs is not None:
         frfs = eqx.tree_at(lambda f: (f.outputs, f.inputs), frfs,
                            (_global(frfs.outputs, frames), _global(frfs.inputs, frames)))
+    time = _time_histories(by_type.get(58, []), units, path, dof_map)
+    local = sorted({int(g) for g in time.nodes} & set(frames)) if time is not None else []
+    if local:
+        warnings.warn(f"{path}: time channels at nodes {local} measure along the local axes of their displacement "
+                      "systems; FRFs made from them keep those local direction codes", stacklevel=2)
     return {
         "nodes": nodes,
         "units": units,
@@ -145,7 +163,7 @@ def read_uff(path: str | os.PathLike, *, length_units: str | None = None,
                     for label, sys in systems.items() if label != 0},
         "modes": modes,
         "frfs": frfs,
-        "time": _time_histories(by_type.get(58, []), units, path, dof_map),
+        "time": time,
     }
 
 

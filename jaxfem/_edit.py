@@ -125,16 +125,22 @@ def add_rbe3(model: Model, grids: Sequence[int], xyz: Sequence[float] | None = N
 
 def add_interpolated_grid(model: Model, grids: Sequence[int], weights: Sequence[float], xyz: Sequence[float],
                           node: int | None = None) -> tuple[Model, int]:
-    """A new grid at ``xyz`` (m) whose six components are Σᵢ wᵢ uᵢ over ``grids``: a
-    dependent grid, no new DoFs (a measured point read by shape functions wᵢ, or by one
-    nearest grid with w = 1). Returns ``(model, grid id)``."""
+    """A new grid at ``xyz`` (m) that moves with ``grids``: a dependent grid, no new DoFs.
+    Its rotation is θ = Σᵢ wᵢ θᵢ and its translation u = Σᵢ wᵢ uᵢ + θ × d, rigidly offset
+    by d = xyz − Σᵢ wᵢ xᵢ from the interpolated point (a measured point read by shape
+    functions wᵢ; by one nearest grid with w = 1 it is that grid's RBE2). Returns
+    ``(model, grid id)``."""
     rows = model.node_index(grids)
+    w = np.asarray(weights, dtype=np.float64).reshape(-1)
+    d = np.asarray(xyz, dtype=np.float64).reshape(3) - w @ np.asarray(model.xyz)[rows]
     dofs = model.dofs
     terms: dict[int, np.ndarray] = {}
-    for row, w in zip(rows, np.asarray(weights, dtype=np.float64).reshape(-1)):
+    for row, wi in zip(rows, w):
         for k, i in enumerate(dofs.index[row]):
-            if i < dofs.n_dof and np.any(dofs.coef[row, :, k] != 0.0):
-                terms[int(i)] = terms.get(int(i), np.zeros(COMPONENTS)) + w * dofs.coef[row, :, k]
+            c = dofs.coef[row, :, k]
+            if i < dofs.n_dof and np.any(c != 0.0):
+                moved = np.concatenate([c[:3] + np.cross(c[3:], d), c[3:]])
+                terms[int(i)] = terms.get(int(i), np.zeros(COMPONENTS)) + wi * moved
     return _with_grid(model, xyz, node, terms)
 
 

@@ -72,6 +72,11 @@ def test_identify_roving_hammer_uff(tmp_path):
     scale = np.sum(back.shapes * truth, axis=0) / np.sum(truth * truth, axis=0)
     np.testing.assert_allclose(np.abs(scale), 1.0, atol=1e-5)  # unit modal mass through the driving point 2+Z
     np.testing.assert_allclose(back.shapes, scale * truth, atol=1e-5 * np.max(np.abs(truth)))  # UFF: 6 digits
+    exact = np.array(report["shapes"]).T  # the JSON keeps full precision
+    truth = phi[[int(label.removesuffix("+Z")) - 1 for label in report["sensors"]]]
+    scale = np.sum(exact * truth, axis=0) / np.sum(truth * truth, axis=0)
+    np.testing.assert_allclose(exact, scale * truth, rtol=0, atol=1e-6 * np.max(np.abs(truth)))
+    np.testing.assert_allclose(np.abs(scale), 1.0, atol=1e-6)
 
 
 @pytest.mark.parametrize("plots", [False, True])

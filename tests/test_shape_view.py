@@ -72,12 +72,12 @@ def test_test_translations_from_skew_and_partial_sensors():
     sensors = Sensors.from_vectors([7, 7, 7, 8, 8, 9], np.vstack([d, [[0, 0, 1.0], [0, 1.0, 0]], [[0, 0, 1.0]]]),
                                    [False] * 5 + [True])
     shapes = np.stack([np.concatenate([d @ u, [u[2], u[1]], [5.0]]) for u in (u1, u2)], axis=1)
-    got = sv.test_translations(sensors, shapes)
+    got = sv.measured_translations(sensors, shapes)
     assert set(got) == {7, 8}  # a node with a rotation only is not drawn
     np.testing.assert_allclose(got[7], np.stack([u1, u2], axis=1), atol=1e-12)  # three skew directions: all of u
     np.testing.assert_allclose(got[8], [[0, 0], [u1[1], u2[1]], [u1[2], u2[2]]], atol=1e-12)  # measured parts only
     with pytest.raises(ValueError, match="complex"):
-        sv.test_translations(sensors, shapes * 1j)
+        sv.measured_translations(sensors, shapes * 1j)
 
 
 def test_grid_translations_agree_with_the_observation_matrix(case):
@@ -180,15 +180,15 @@ def test_test_geometry_follows_the_map(tmp_path):
     moved = {k: R @ np.array(v) + t for k, v in raw.items()}
     gmap = SimpleNamespace(nodes=np.array([1, 2, 3]), xyz=np.array([moved[k] for k in (1, 2, 3)]),
                            renamed={3: 1003}, alignment={"rotation": R, "translation": t})
-    nodes, lines, names = sv.test_geometry(uff, gmap)
+    nodes, lines, names = sv.measured_geometry(uff, gmap)
     assert sorted(nodes) == [1, 2, 3, 4] and names == {1: 1, 2: 2, 1003: 3}
     np.testing.assert_allclose(nodes[4], moved[4], atol=1e-12)
     assert lines == [(1, 2), (2, 3), (3, 4), (1, 4)]
     in_mm = SimpleNamespace(nodes=np.array([1, 2, 3]), xyz=1000 * np.array([raw[k] for k in (1, 2, 3)]),
                             renamed={}, alignment=None)
-    nodes, lines, _ = sv.test_geometry(uff, in_mm)
+    nodes, lines, _ = sv.measured_geometry(uff, in_mm)
     assert sorted(nodes) == [1, 2, 3] and lines == [(1, 2), (2, 3)]
-    assert sv.test_geometry(None, None) == ({}, [], {})
+    assert sv.measured_geometry(None, None) == ({}, [], {})
 
 
 @pytest.fixture(scope="module")

@@ -107,9 +107,8 @@ def test_test_ids_that_are_model_grids_elsewhere_get_new_grids(plate_files):
     test = _artemis(root / "clash.uff", POINTS, shapes, f, ids=np.arange(1, 13) + 20)  # model grids 21..32
     result, data = _correlate(root, test, "--map", "interpolate")
     assert result.exit_code == 0, result.output
-    top = int(max(model.node_ids.max(), 32))
-    assert [n["grid"] for n in data["test_geometry"]["nodes"]] == list(range(top + 1, top + 13))
-    assert "test nodes whose ids are model grids elsewhere read as new grids: 21 → " in result.output
+    assert [n["grid"] for n in data["test_geometry"]["nodes"]] == list(range(121, 133))  # model grids 1..81
+    assert "test nodes whose ids are model grids elsewhere read as new grids: 21 → 121, 22 → 122" in result.output
     assert min(p["mac"] for p in data["paired_modes"]) > 1 - 1e-6
 
 
@@ -154,6 +153,9 @@ def test_aliasing_names_the_modes():
     assert any(re.match(r"test mode 1 has MAC ≥ 0.65 with 2 model modes \(1 \(10 Hz\) MAC 1.00, 3 \(30 Hz\)", line)
                for line in lines)
     assert not any("test mode 3" in line for line in lines)
+    # with frequencies, a look-alike far outside twice the pairing window does not count
+    lines = aliasing(phi_a, phi_e, np.array([10.0, 20.0, 30.0]), np.array([10.0, 10.5, 20.0]))
+    assert not any(line.startswith("test mode 1 has") for line in lines)
     with pytest.raises(ValueError, match="max_automac"):
         aliasing(phi_a, phi_e, max_automac=1.5)
 
@@ -181,3 +183,58 @@ def test_diagnose_finds_a_hidden_mass_through_test_nodes_of_their_own(tmp_path):
     assert data["test_geometry"]["worst_distance_m"] < 1e-6
     after = data["after"]
     assert after["rms_freq_dev_pct_passive_after"] < 0.05 < after["rms_freq_dev_pct_passive_before"]
+
+
+def test_correlate_warns_of_spatial_aliasing_with_too_few_sensors(plate_files):
+    root, model, f, shapes = plate_files
+    few = [0, 3, 9]  # three corners: six modes cannot be told apart
+    test = _artemis(root / "few.uff", POINTS[few], shapes[few], f)
+    result, data = _correlate(root, test, "--map", "interpolate")
+    assert result.exit_code == 0, result.output
+    auto = np.array(data["automac"])
+    i, j = np.unravel_index(np.argmax(np.triu(auto, k=1)), auto.shape)
+    assert auto[i, j] > 0.9
+    assert f"warning: test modes {i + 1} and {j + 1} have AutoMAC {auto[i, j]:.2f} > 0.90" in result.output
+    assert any("spatial aliasing" in line for line in data["aliasing"])
+    assert any(re.match(r"test mode \d+ has MAC ≥ 0.65 with \d model modes", line) for line in data["aliasing"])
+
+
+def test_sensors_on_a_beam_surface_see_torsion_through_the_rigid_link(tmp_path):
+    """Jim-Beam-like: a free-free bar, test nodes of their own on its top face at both
+    edges (ARTeMIS style, cm, no dataset 164), measuring z. Nearest-grid mapping links each
+    node rigidly to its grid (u_z + θx·y), so the torsion modes are seen and pair with MAC 1."""
+    n, length, w, h = 12, 1.2, 0.05, 0.02
+    lines = [f"GRID,{i + 1},,{length * i / n:.6f},0.,0." for i in range(n + 1)]
+    lines += [f"CBAR,{i + 1},1,{i + 1},{i + 2},0.,0.,1." for i in range(n)]
+    torsion = w * h**3 * (1 / 3 - 0.21 * h / w * (1 - h**4 / (12 * w**4)))  # rectangle, Roark
+    lines += [f"PBAR,1,1,{w * h:.6e},{w * h**3 / 12:.6e},{h * w**3 / 12:.6e},{torsion:.6e}",
+              "MAT1,1,210.E9,,0.3,7850.", "PARAM,COUPMASS,1", "ENDDATA"]
+    (tmp_path / "beam.bdf").write_text("\n".join(lines) + "\n")
+    model = jaxfem.build_model(read_bdf_text("\n".join(lines)))
+    lam, phi = jaxfem.modes(model, 16)
+    phi = np.asarray(phi)[:, 6:]
+    stations = [1, 3, 5, 7, 9, 11, 13]
+    labels = [tuple(x) for x in np.asarray(model.dofs.labels).tolist()]
+    uz = phi[[labels.index((g, 3)) for g in stations]]
+    rx = phi[[labels.index((g, 4)) for g in stations]]
+    xyz, values = [], []
+    for side in (-1.0, 1.0):
+        for k, g in enumerate(stations):
+            xyz.append(np.asarray(model.xyz)[g - 1] + [0.0, side * w / 2, h / 2])
+            values.append(uz[k] + rx[k] * side * w / 2)  # (θ × d)_z = θx d_y − θy d_x, d_x = 0
+    values = np.array(values)
+    seen = np.linalg.norm(values, axis=0) > 1e-3 * np.linalg.norm(values, axis=0).max()
+    f = np.asarray(jaxfem.frequencies_hz(lam))[6:][seen]
+    twist = np.flatnonzero(np.linalg.norm(rx, axis=0)[seen] * w > np.linalg.norm(uz, axis=0)[seen])
+    assert len(twist) >= 1  # a torsion mode among the measured ones
+    test = _artemis(tmp_path / "jim.uff", np.array(xyz) * 100, values[:, seen], f, ids=np.arange(101, 115))
+    result = runner.invoke(app, ["correlate", str(tmp_path / "beam.bdf"), str(test), "--json",
+                                 str(tmp_path / "c.json"), "--test-units", "cm", "-n", "24"])
+    assert result.exit_code == 0, result.output
+    data = json.loads((tmp_path / "c.json").read_text())
+    assert data["test_geometry"]["method"] == "nearest"
+    assert data["test_geometry"]["worst_distance_m"] == pytest.approx(math.hypot(w / 2, h / 2), rel=1e-6)
+    pairs = {p["test"]: p for p in data["paired_modes"]}
+    assert len(pairs) == int(seen.sum())
+    assert all(pairs[j + 1]["mac"] > 1 - 1e-6 for j in twist)
+    assert min(p["mac"] for p in pairs.values()) > 1 - 1e-6

@@ -144,3 +144,88 @@ def test_length_units_given_for_a_file_without_dataset_164(tmp_path):
     declared = _write(tmp_path / "mm.uff", [_units(length=1000.0, code=9), _nodes([1], [[500.0, 0.0, 0.0]])])
     with pytest.warns(UserWarning, match="lengths taken in cm as given instead"):
         assert read_uff(declared, length_units="cm")["nodes"][1][0] == pytest.approx(5.0)
+
+
+def test_testlab_file_with_rotated_systems_correlates_through_the_cli(tmp_path):
+    """Triaxial sensors at plate grids, each node's coordinates and components in its own
+    rotated system (2420, mm): read in global axes the model's own modes pair with MAC 1;
+    the same numbers taken as global components (the systems ignored) do not."""
+    import json
+
+    from typer.testing import CliRunner
+
+    import jaxfem
+    from benchmarks.shell_models import plate
+    from jaxfem.io import read_bdf_text
+    from updating._shape_view import grid_translations
+    from updating.cli import app
+
+    text = plate(1.0, 0.8, 8, 8, "PSHELL,1,1,0.01,1,,1\nMAT1,1,70.E9,,0.3,2700.", bc="free")
+    (tmp_path / "plate.bdf").write_text(text)
+    model = jaxfem.build_model(read_bdf_text(text))
+    lam, phi = jaxfem.modes(model, 12)
+    u = grid_translations(model, np.asarray(phi))[:, :, 6:]  # (n_grid, 3, 6) elastic modes
+    grids = [11, 15, 23, 30, 34, 41, 47, 52, 60, 66, 71, 78]
+    rows = model.node_index(grids)
+    labels = [10 + k for k in range(len(grids))]
+    axes = [_ry(7.0 * k) @ _rz(25.0 * k) for k in range(len(grids))]
+    origins_mm = [np.array([10.0 * k, -5.0 * k, 3.0]) for k in range(len(grids))]
+    local_xyz = [(np.asarray(model.xyz)[r] * 1000 - o) @ a.T for r, a, o in zip(rows, axes, origins_mm)]
+    stored = [a @ u[r] * 1000 for r, a in zip(rows, axes)]  # (3, modes) local components, mm
+    f = np.asarray(jaxfem.frequencies_hz(lam))[6:]
+
+    def write(path, systems: bool):
+        cs = labels if systems else [0] * len(grids)
+        sets = [_units(length=1000.0, force=1.0, code=9)]
+        if systems:
+            sets.append(_systems2420(labels, [0] * len(labels), axes, origins_mm))
+        xyz = local_xyz if systems else [np.asarray(model.xyz)[r] * 1000 for r in rows]
+        sets.append(_node_set(grids, xyz, cs, cs, kind=2411))
+        sets += [_mode(k + 1, f[k], grids, [s[:, k] for s in stored]) for k in range(len(f))]
+        return _write(path, sets)
+
+    runner = CliRunner()
+    macs = {}
+    for systems in (True, False):
+        path = write(tmp_path / f"testlab_{systems}.uff", systems)
+        out = tmp_path / f"c_{systems}.json"
+        result = runner.invoke(app, ["correlate", str(tmp_path / "plate.bdf"), str(path), "--json", str(out)])
+        assert result.exit_code == 0, result.output
+        data = json.loads(out.read_text())
+        macs[systems] = [p["mac"] for p in data["paired_modes"]]
+        if systems:
+            assert data["test_geometry"]["method"] == "id"  # coordinates transformed onto the grids
+            assert data["test_geometry"]["worst_distance_m"] < 1e-9
+    assert len(macs[True]) == 6 and min(macs[True]) > 1 - 1e-6
+    assert min(macs[False], default=0.0) < 0.99 or len(macs[False]) < 6
+
+
+def test_time_channels_in_local_systems_are_named(tmp_path):
+    from test_uff_time import time_record, write_records
+
+    t = np.arange(64) / 1024.0
+    path = write_records(tmp_path / "local_time.uff", [
+        _units(code=1), _systems2420([4], [0], [_rz(30.0)], [np.zeros(3)]),
+        _node_set([1, 2], [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]], [0, 0], [0, 4], kind=2411),
+        time_record("F", 1, 3, "force", t, np.sin(t)), time_record("A", 2, 1, "acceleration", t, np.cos(t)),
+    ])
+    with pytest.warns(UserWarning, match=re.escape("time channels at nodes [2] measure along the local axes")):
+        assert read_uff(path)["time"].nodes.tolist() == [1, 2]
+
+
+def test_datasets_that_hold_data_but_are_not_read_are_named(tmp_path):
+    results = {"type": 2414, "analysis_dataset_label": 1, "analysis_dataset_name": "Mode shape record 1",
+               "dataset_location": 1, "id1": "NONE", "id2": "NONE", "id3": "NONE", "id4": "NONE", "id5": "NONE",
+               "model_type": 1, "analysis_type": 2, "data_characteristic": 2, "result_type": 8, "data_type": 2,
+               "number_of_data_values_for_the_data_component": 3, "design_set_id": 1, "iteration_number": 0,
+               "solution_set_id": 1, "boundary_condition": 0, "load_set": 1, "mode_number": 1,
+               "time_step_number": 0, "frequency_number": 0, "creation_option": 0, "number_retained": 0,
+               "time": 0.0, "frequency": 12.5, "eigenvalue": 6168.5, "modal_mass": 1.0, "viscous_damping": 0.0,
+               "hysteretic_damping": 0.0, "real_part_eigenvalue": 0.0, "imaginary_part_eigenvalue": 0.0,
+               "real_part_of_modal_A_or_modal_mass": 0.0, "imaginary_part_of_modal_A_or_modal_mass": 0.0,
+               "real_part_of_modal_B_or_modal_mass": 0.0, "imaginary_part_of_modal_B_or_modal_mass": 0.0,
+               "node_nums": np.array([1, 2]), "data_at_node": [np.array([0.0, 0.0, 1.0]), np.array([0.0, 0.0, 2.0])]}
+    path = _write(tmp_path / "results.uff", [_units(code=1), _nodes([1, 2], [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]),
+                                             results])
+    with pytest.warns(UserWarning, match=re.escape("datasets not read, ignored: type 2414 (#3)")):
+        assert read_uff(path)["modes"] is None

@@ -442,15 +442,19 @@ def aliasing(
     phi_a: Inexact[ArrayLike, "n_dof n_a"],
     phi_e: Inexact[ArrayLike, "n_dof n_e"],
     f_a: Float[ArrayLike, " n_a"] | None = None,
+    f_e: Float[ArrayLike, " n_e"] | None = None,
     *,
     min_mac: float = 0.65,
     max_automac: float = 0.9,
+    max_freq_dev: float = 0.30,
 ) -> list[str]:
     """Signs of spatial aliasing, one line each (host-side): pairs of test modes whose
     AutoMAC (eq. 1.54 of the test shapes with each other) exceeds ``max_automac`` — the
     sensors cannot tell them apart — and test modes with MAC ≥ ``min_mac`` against two or
-    more model modes, whose pairing then rests on the frequency window. Modes numbered
-    from 1; model frequencies ``f_a`` (Hz) named where given."""
+    more model modes, whose pairing then rests on the frequency window. With frequencies
+    (Hz), only model modes within twice the pairing window ``max_freq_dev`` of the test
+    mode count (a look-alike ten times higher cannot be mistaken for it). Modes numbered
+    from 1."""
     if not 0.0 < max_automac <= 1.0:
         raise ValueError(f"max_automac must be in (0, 1], got {max_automac}")
     auto = np.asarray(automac(phi_e))
@@ -459,8 +463,12 @@ def aliasing(
         lines.append(f"test modes {i + 1} and {j + 1} have AutoMAC {auto[i, j]:.2f} > {max_automac:.2f}: the "
                      "sensors do not tell them apart (spatial aliasing; add sensors or directions)")
     m = np.asarray(mac(phi_a, phi_e))  # (n_a, n_e)
+    near = np.ones_like(m, dtype=bool)
+    if f_a is not None and f_e is not None:
+        f_a, f_e = np.asarray(f_a, np.float64), np.asarray(f_e, np.float64)
+        near = np.abs(f_a[:, None] - f_e[None, :]) <= 2 * max_freq_dev * f_e[None, :]
     for j in range(m.shape[1]):
-        hits = np.flatnonzero(m[:, j] >= min_mac)
+        hits = np.flatnonzero((m[:, j] >= min_mac) & near[:, j])
         if len(hits) > 1:
             hits = hits[np.argsort(-m[hits, j], kind="stable")]
             named = ", ".join(f"{k + 1}" + ("" if f_a is None else f" ({np.asarray(f_a)[k]:.4g} Hz)")

@@ -19,7 +19,7 @@ then an evenly spaced share of the remaining shell edges; grids are drawn as mar
 up to :data:`MAX_GRID_MARKERS` grids.
 
 :func:`correlation_view` prepares the arrays from a correlation (mode vectors over the
-solved DoFs, measured shapes at the sensors, a :class:`Pairing`); :func:`test_geometry`
+solved DoFs, measured shapes at the sensors, a :class:`Pairing`); :func:`measured_geometry`
 gives the test nodes and trace lines in the model's frame.
 """
 
@@ -72,7 +72,7 @@ def grid_translations(model: Model, phi: Float[ArrayLike, "ndof m"]) -> Float[np
     return np.asarray(T @ phi.astype(np.float64)).reshape(n, 3, phi.shape[1])
 
 
-def test_translations(sensors, shapes: Float[ArrayLike, "n m"]) -> dict[int, np.ndarray]:
+def measured_translations(sensors, shapes: Float[ArrayLike, "n m"]) -> dict[int, np.ndarray]:
     """Translations of the measured nodes from shapes at sensors.
 
     A node's translational sensors read ``D u = y`` (rows of D: their unit directions,
@@ -96,7 +96,7 @@ def test_translations(sensors, shapes: Float[ArrayLike, "n m"]) -> dict[int, np.
     return out
 
 
-def test_geometry(path: str | os.PathLike | None = None, gmap=None
+def measured_geometry(path: str | os.PathLike | None = None, gmap=None
                   ) -> tuple[dict[int, np.ndarray], list[tuple[int, int]], dict[int, int]]:
     """The test nodes and trace lines to draw, in the model's frame.
 
@@ -155,7 +155,7 @@ def correlation_view(
     measured modes (:class:`identification.ModalData`, real) and the model modes at the
     same sensors ``at_sensors`` (C φ); the :class:`Pairing` of the two (indices into the
     columns of ``phi`` and the test modes); the test nodes {id: xyz m} and trace lines
-    (:func:`test_geometry`); ``names``: {sensor node id: test node id} where they differ.
+    (:func:`measured_geometry`); ``names``: {sensor node id: test node id} where they differ.
     A measured node missing from ``test_nodes`` is drawn at the model grid of its sensor
     id. Each model shape's sign is chosen so that it moves with its test shape at the
     sensors (``φ_eᵀ C φ_a ≥ 0``). **Returns:** the path written.
@@ -163,7 +163,7 @@ def correlation_view(
     phi, at_sensors = np.asarray(phi), np.asarray(at_sensors)
     shapes_e = np.asarray(test.shapes)
     names = {int(k): int(v) for k, v in (names or {}).items()}
-    by_sensor = test_translations(test.sensors, shapes_e)
+    by_sensor = measured_translations(test.sensors, shapes_e)
     nodes = {int(k): np.asarray(v, np.float64) for k, v in (test_nodes or {}).items()}
     missing = [n for n in by_sensor if names.get(n, n) not in nodes]
     for n, row in zip(missing, model.node_index(missing) if missing else ()):  # ValueError: ids that are no grid
@@ -206,7 +206,7 @@ def shape_view(
       (n_grid, 3).
     - ``test_nodes``: {node id: xyz (3,) m}, every test node (measured or not).
     - ``test_shapes``: {node id: (3, n_e)} translations of the measured nodes per test
-      mode (:func:`test_translations`); nodes not listed stand still.
+      mode (:func:`measured_translations`); nodes not listed stand still.
     - ``pairs``: ``(test mode, model mode, f_test Hz, f_model Hz, MAC)`` per pair, mode
       indices from 0 (shown from 1); the model shapes already signed to move with the test.
     - ``test_lines``: node-id pairs of the test wireframe (UFF dataset 82).

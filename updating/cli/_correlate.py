@@ -70,7 +70,8 @@ def correlate(
         fail(str(err))
     auto = np.asarray(corr.automac(phi_e))
     try:
-        aliasing = corr.aliasing(phi_a, phi_e, f_a, min_mac=pairing.min_mac, max_automac=max_automac)
+        aliasing = corr.aliasing(phi_a, phi_e, f_a, f_e, min_mac=pairing.min_mac, max_automac=max_automac,
+                                 max_freq_dev=pairing.max_freq_dev)
     except ValueError as err:
         fail(f"--max-automac: {err}")
     labels = test.sensors.labels
@@ -110,10 +111,10 @@ def correlate(
         ]
         typer.echo("wrote " + ", ".join(str(w) for w in written))
     if report is not None:
-        from .._shape_view import correlation_view, test_geometry
+        from .._shape_view import correlation_view, measured_geometry
 
         try:
-            nodes, lines, names = test_geometry(test_path, gmap)
+            nodes, lines, names = measured_geometry(test_path, gmap)
             view = correlation_view(report / "shapes.html", model=model, phi=np.asarray(phi), test=test,
                                     at_sensors=phi_a, pairing=pairing, test_nodes=nodes, test_lines=lines,
                                     names=names, title=f"mode shapes: {test_path.name} vs {model_path.name}")

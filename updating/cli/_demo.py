@@ -30,5 +30,5 @@ def demo(
     model = load_model(model_path)
     test = load_test(test_path)
     diagnosis(model, test, PARAMETERS, model_name=model_path.name, test_name=test_path.name,
-              json_out=out / "diagnosis.json", report=out / "report")
+              json_out=out / "diagnosis.json", report=out / "report", test_path=test_path)
     typer.echo(f"demo done in {time.perf_counter() - start:.0f} s")

@@ -126,7 +126,8 @@ def _figures(rep: dict, diag, confirmation, model, test, report: Path) -> dict:
     return figures
 
 
-def _shape_views(diag, confirmation, test, gmap, params, options, report: Path) -> dict[str, str]:
+def _shape_views(diag, confirmation, test, gmap, params, options, report: Path,
+                 test_path: Path | None = None) -> dict[str, str]:
     """The 3-D views of test and model mode shapes next to the report: the initial model
     (``shapes.html``) and, with an effect added, the updated model (``shapes_after.html``),
     each paired anew with the parameter file's thresholds; {link text: file name}. A view
@@ -135,7 +136,7 @@ def _shape_views(diag, confirmation, test, gmap, params, options, report: Path) 
     from identification import observation_matrix
 
     from .._correlation import pair_modes
-    from .._shape_view import correlation_view, test_geometry
+    from .._shape_view import correlation_view, measured_geometry
     from .._solve import n_model_modes
 
     limits = {} if params is None else {"min_mac": params.options.min_mac,
@@ -149,7 +150,7 @@ def _shape_views(diag, confirmation, test, gmap, params, options, report: Path) 
     f_e, phi_e = np.asarray(test.frequencies_hz), np.asarray(test.shapes)
     views = {}
     try:
-        nodes, lines, names = test_geometry(None, gmap)
+        nodes, lines, names = measured_geometry(test_path, gmap)
         for label, name, m in models:
             lam, phi = jaxfem.modes(m, n_model_modes(m, len(f_e)), solver=solver)
             at = observation_matrix(m, test.sensors)[0] @ np.asarray(phi)
@@ -166,10 +167,11 @@ def _shape_views(diag, confirmation, test, gmap, params, options, report: Path) 
 
 def diagnosis(model, test, params, *, model_name: str, test_name: str, json_out: Path | None,
               report: Path | None, frf_path: Path | None = None, options=None, reference: dict | None = None,
-              gmap=None) -> dict:
+              gmap=None, test_path: Path | None = None) -> dict:
     """Diagnose, add the winning effect, update, print, write JSON and the HTML report
     (``reference``: the reference state's file and per-mode change, when the test is a change;
-    ``gmap``: the test geometry's map onto the model)."""
+    ``gmap``: the test geometry's map onto the model; ``test_path``: the test file, for
+    the trace lines of the 3-D view)."""
     from .._diagnose import DiagnoseOptions, add_effect, diagnose
     from .._report import json_safe, write_report
 
@@ -208,7 +210,7 @@ def diagnosis(model, test, params, *, model_name: str, test_name: str, json_out:
     if report is not None:
         report.mkdir(parents=True, exist_ok=True)
         figures = _figures(rep, diag, confirmation, model, test, report)
-        views = _shape_views(diag, confirmation, test, gmap, params, options, report)
+        views = _shape_views(diag, confirmation, test, gmap, params, options, report, test_path)
         typer.echo(f"wrote {write_report(json_safe(rep), figures, report / 'report.html', links=views)}")
     return rep
 
@@ -258,7 +260,8 @@ def diagnose(
                               noise_damping=noise_damping / 100, eigensolver=check_solver(solver), ray=ray)
     diagnosis(model, test, params, model_name=model_path.name, test_name=test_path.name, json_out=json_out,
               report=report, frf_path=frf_path, options=options,
-              reference=None if change is None else {"file": reference_path.name, "modes": change}, gmap=gmap)
+              reference=None if change is None else {"file": reference_path.name, "modes": change}, gmap=gmap,
+              test_path=test_path)
 
 
 def _relative(model, test, reference_path: Path, solver: str, gmap):
