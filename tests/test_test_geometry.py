@@ -160,7 +160,7 @@ def test_aliasing_names_the_modes():
         aliasing(phi_a, phi_e, max_automac=1.5)
 
 
-@pytest.mark.slow(seconds=120)
+@pytest.mark.slow(seconds=80)
 def test_diagnose_finds_a_hidden_mass_through_test_nodes_of_their_own(tmp_path):
     """The truth carries 0.5 kg at the plate's centre grid 41; the test file (cm, own node
     ids, no units dataset) is read at its points by interpolation: the diagnosis must
