@@ -165,20 +165,43 @@ def _diagonal(a: ElementMatrix) -> np.ndarray:
     return d[: a.n]
 
 
+_ZERO = 1e-14  # a diagonal term below this fraction of its grid's scale is no stiffness (mass)
+_FLOOR = 1e-8  # a grid's scale is at least this fraction of the model's largest term
+
+
+def _grid_scale(d: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """Per DoF: the largest |d| over the DoFs of its grid, at least ``_FLOOR`` × max |d|."""
+    a = np.abs(d)
+    _, group = np.unique(nodes, return_inverse=True)
+    per_grid = np.zeros(group.max(initial=-1) + 1)
+    np.maximum.at(per_grid, group, a)
+    return np.maximum(per_grid[group], max(_FLOOR * a.max(initial=0.0), np.finfo(float).tiny))
+
+
 def finalize_dofs(model: Model) -> Model:
     """Remove DoFs with neither stiffness nor mass (auto-SPC) and mark massless DoFs.
 
-    Works on the nominal values of the model (the structural zero pattern does not
-    change with the parameters). Raises ``ValueError`` naming the DoFs when the
-    massless DoFs form a mechanism (their stiffness block is singular).
+    A diagonal term counts as zero below 1e-14 of its grid's largest term (of stiffness,
+    or of mass), so that a stiff spring or a tiny element elsewhere cannot remove a
+    grid's rotations; the grid's scale is floored at 1e-8 of the model's largest term,
+    so that round-off on an otherwise unconnected grid counts as nothing. The removed
+    DoFs are ``dofs.auto_spc``. Non-finite terms (an overflow in some element) are refused,
+    naming their DoFs. Works on the nominal values of the model (the structural
+    zero pattern does not change with the parameters). Raises ``ValueError`` naming the
+    DoFs when the massless DoFs form a mechanism (their stiffness block is singular).
     """
     dofs = model.dofs
     K, M = assemble(eqx.tree_at(lambda m: m.dofs.massless, model, np.zeros(0, np.int64)))
     dk, dm = _diagonal(K), _diagonal(M)
-    scale_k = max(np.max(np.abs(dk), initial=0.0), np.finfo(float).tiny)
-    scale_m = max(np.max(np.abs(dm), initial=0.0), np.finfo(float).tiny)
-    no_k = np.abs(dk) <= 1e-14 * scale_k
-    no_m = np.abs(dm) <= 1e-14 * scale_m
+    for name, d in (("stiffness", dk), ("mass", dm)):
+        bad = np.flatnonzero(~np.isfinite(d))
+        if len(bad):
+            where = ", ".join(f"({n}, {c})" for n, c in dofs.labels[bad[:5]].tolist())
+            raise ValueError(f"the {name} of {len(bad)} DoF(s) is not finite, (node, component) {where}"
+                             f"{' …' if len(bad) > 5 else ''}: an overflow in the elements there (check their "
+                             "thickness, offsets, section and material values)")
+    no_k = np.abs(dk) <= _ZERO * _grid_scale(dk, dofs.labels[:, 0])
+    no_m = np.abs(dm) <= _ZERO * _grid_scale(dm, dofs.labels[:, 0])
     drop = no_k & no_m
     keep = np.flatnonzero(~drop)
     new_number = np.full(dofs.n_dof + 1, len(keep), dtype=np.int64)
