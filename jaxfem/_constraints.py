@@ -57,8 +57,9 @@ def _constraints(bulk: BulkData, grids: _Grids, spc_set: int | None) -> dict[tup
             continue
         if card.name == "SPC" and card["D"] != 0.0:
             raise card.error("D", f"enforced displacement {card['D']} is not supported (D must be 0.0)")
-        for g in (card["G"],) if card.name == "SPC" else card["G"]:
-            grids(card, "G", g)
+        if card.name == "SPC":
+            grids(card, "G")
+        for g in (card["G"],) if card.name == "SPC" else grids.listed(card, "G"):
             for c in _components(card["C"]):
                 fixed[(g, c)] = card
     return fixed
@@ -230,33 +231,55 @@ def _dof_map(bulk: BulkData, grids: _Grids, spc_set: int | None, mpc_set: int | 
     number = {label: i for i, label in enumerate(labels)}
     rows: dict[tuple[int, int], dict[int, float]] = {}
 
-    def row(g: int, c: int, chain: tuple[tuple[tuple[int, int], str], ...] = ()) -> dict[int, float]:
-        """Coefficients of (grid g, component c) on the independent DoFs; ``chain`` holds
-        the dependent DoFs being expanded and the field each was followed through."""
-        if (g, c) in rows:
-            return rows[(g, c)]
-        if (g, c) in number:
-            return {number[(g, c)]: 1.0}
-        if (g, c) in fixed:
-            return {}
-        card, terms = dependent[(g, c)]
-        visited = [dof for dof, _ in chain]
-        if (g, c) in visited:
-            loop = visited[visited.index((g, c)):] + [(g, c)]
-            path = " -> ".join(
-                f"{other.name} {other.id} at {other.file}:{other.line} (grid {d[0]} component {d[1]})"
-                for d in loop
-                for other in (dependent[d][0],)
-            )
-            raise card.error(
-                chain[visited.index((g, c))][1], f"rigid elements/MPCs depend on each other in a loop: {path}"
-            )
-        out: dict[int, float] = {}
-        for (h, e), a, key in terms:
-            for dof, value in row(h, e, chain + (((g, c), key),)).items():
-                out[dof] = out.get(dof, 0.0) + a * value
-        rows[(g, c)] = out
-        return out
+    def known(dof: tuple[int, int]) -> dict[int, float] | None:
+        """Coefficients of an independent, constrained or already expanded DoF, else None."""
+        if dof in rows:
+            return rows[dof]
+        if dof in number:
+            return {number[dof]: 1.0}
+        return {} if dof in fixed else None
+
+    def row(g: int, c: int) -> dict[int, float]:
+        """Coefficients of (grid g, component c) on the independent DoFs: a depth-first
+        expansion with an explicit stack (a chain of rigid elements may be as long as the
+        file). ``path`` holds the dependent DoFs being expanded, ``keys[i]`` the field
+        followed from ``path[i]`` to ``path[i + 1]``, ``todo[i]`` the terms of ``path[i]``
+        not yet looked at."""
+        if known((g, c)) is not None:
+            return known((g, c))
+        path, keys, todo = [(g, c)], [], [iter(dependent[(g, c)][1])]
+        on_path = {(g, c): 0}
+        while path:
+            for (h, e), _, key in todo[-1]:
+                if known((h, e)) is not None:
+                    continue
+                if (h, e) in on_path:  # a loop: from (h, e) along the path back to it
+                    i = on_path[(h, e)]
+                    path_text = " -> ".join(
+                        f"{other.name} {other.id} at {other.file}:{other.line} (grid {d[0]} component {d[1]})"
+                        for d in path[i:] + [(h, e)]
+                        for other in (dependent[d][0],)
+                    )
+                    raise dependent[(h, e)][0].error(
+                        (keys + [key])[i], f"rigid elements/MPCs depend on each other in a loop: {path_text}"
+                    )
+                on_path[(h, e)] = len(path)
+                path.append((h, e))
+                keys.append(key)
+                todo.append(iter(dependent[(h, e)][1]))
+                break
+            else:  # every term of path[-1] is known: combine them
+                dof = path.pop()
+                out: dict[int, float] = {}
+                for term, a, _ in dependent[dof][1]:
+                    for d, value in known(term).items():
+                        out[d] = out.get(d, 0.0) + a * value
+                rows[dof] = out
+                todo.pop()
+                del on_path[dof]
+                if keys:
+                    keys.pop()
+        return rows[(g, c)]
 
     node_rows = [[row(int(g), c) for c in range(1, COMPONENTS + 1)] for g in grids.ids]
     used = [sorted(set().union(*r)) for r in node_rows]

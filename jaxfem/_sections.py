@@ -2,9 +2,10 @@
 
 One material table of MAT1, MAT2 and MAT8 (the last two checked in
 :mod:`jaxfem._shell_build`; beams and rods need MAT1). MAT1 completes E, G, NU from two
-of them (MSC QRG, MAT1 remarks); a PBARL section (BAR,
+of them (MSC QRG, MAT1 remarks), with −1 < NU ≤ 0.5, E > 0, G ≥ 0 and G > 0 where it is
+used (torsion, shells); a PBARL section (BAR,
 ROD, TUBE, BOX) gets A, I1, I2, J, K1, K2 from its dimensions (rectangle torsion: Roark
-table 10.7; box: Bredt's formula); PBEAM is a constant section (end A); every value is
+table 10.7; box: Bredt's formula), finite; PBEAM is a constant section (end A); every value is
 checked. Tables are sorted by id, with the map id → row that the elements use.
 """
 
@@ -39,12 +40,25 @@ def _materials(bulk: BulkData) -> tuple[Materials, dict[int, int]]:
 def _mat1_row(card: Card) -> tuple:
     """(E, G, nu, rho, E2, G1z, G2z, Q) of a MAT1. Two of E, G, NU given: the third from
     G = E / (2 (1 + NU)); only E (or only G): the other modulus and NU are 0 (MSC QRG,
-    MAT1 remarks)."""
+    MAT1 remarks).
+
+    Ranges, given or derived: −1 < NU ≤ 0.5 (isotropic elasticity: positive bulk and
+    shear moduli; 0.5 incompressible), E > 0, G ≥ 0 (G > 0 where it is used: see
+    :func:`_material` and :func:`_check_shell_shear`), RHO ≥ 0, all finite.
+    """
     E, G, nu = card["E"], card["G"], card["NU"]
+    if E is not None and E <= 0.0:
+        raise card.error("E", f"E must be > 0, got {E}")
+    if G is not None and G < 0.0:
+        raise card.error("G", f"G must be >= 0, got {G}")
+    if nu is not None and not -1.0 < nu <= 0.5:
+        raise card.error("NU", f"NU must lie in (-1, 0.5], got {nu}")
     if nu is None and E is not None and G is not None:
         if G <= 0.0:
             raise card.error("G", f"G must be > 0 to derive NU, got {G}")
         nu = E / (2.0 * G) - 1.0
+        if not -1.0 < nu <= 0.5:
+            raise card.error("G", f"E = {E:.6g} and G = {G:.6g} give NU = E/(2G) - 1 = {nu:.6g}, outside (-1, 0.5]")
     elif G is None and nu is not None:
         G = E / (2.0 * (1.0 + nu))
     elif E is None and nu is not None:
@@ -52,15 +66,16 @@ def _mat1_row(card: Card) -> tuple:
     E, G, nu = E or 0.0, G or 0.0, nu or 0.0
     if E <= 0.0:
         raise card.error("E", f"E must be > 0, got {E}")
-    if G < 0.0:
-        raise card.error("G", f"G must be >= 0, got {G}")
+    if not (np.isfinite(E) and np.isfinite(G)):
+        raise card.error("E" if card["E"] is None else "G", f"the derived modulus overflows (E = {E}, G = {G})")
     if card["RHO"] < 0.0:
         raise card.error("RHO", f"negative density {card['RHO']}")
     return E, G, nu, card["RHO"], 0.0, 0.0, 0.0, np.zeros((3, 3))
 
 
-def _material(card: Card, mat_rows: dict[int, int], materials: Materials) -> int:
-    """Row of the MAT1 of a beam or rod section; located error for another kind."""
+def _material(card: Card, mat_rows: dict[int, int], materials: Materials, j: float) -> int:
+    """Row of the MAT1 of a beam or rod section; located error for another kind, and for
+    torsion (J > 0) on a MAT1 with G = 0 (E alone given: MSC QRG sets G = NU = 0)."""
     if card["MID"] not in mat_rows:
         raise card.error("MID", f"material {card['MID']} is not defined (MAT1)")
     row = mat_rows[card["MID"]]
@@ -68,7 +83,28 @@ def _material(card: Card, mat_rows: dict[int, int], materials: Materials) -> int
     if kind != MAT1:
         what = "rods" if card.name == "PROD" else "beams"
         raise card.error("MID", f"material {card['MID']} is a MAT{kind}; {what} need MAT1")
+    if j > 0.0 and float(materials.G[row]) == 0.0:
+        raise card.error(
+            "J" if "J" in card.values else "MID",
+            f"torsion constant J = {j:.6g} needs a shear modulus, but MAT1 {card['MID']} has G = 0 "
+            "(only E given); give G or NU on the MAT1",
+        )
     return row
+
+
+def _check_shell_shear(bulk: BulkData, materials: Materials, mat_rows: dict[int, int]) -> None:
+    """Shells use G of a MAT1 (in-plane, twisting and transverse shear): a MAT1 with
+    G = 0 (only E given) named by a PSHELL MID1..MID3 or a PCOMP ply is refused."""
+    for card in bulk["PSHELL"] + bulk["PCOMP"]:
+        if card.name == "PSHELL":
+            uses = [(k, card[k]) for k in ("MID1", "MID2", "MID3") if card[k] is not None]
+        else:
+            uses = [(f"MID{k}", mid) for k, mid in enumerate(card["MID"], 1)]
+        for key, mid in uses:
+            row = mat_rows.get(mid)
+            if row is not None and int(materials.kind[row]) == MAT1 and float(materials.G[row]) == 0.0:
+                raise card.error(key, f"MAT1 {mid} has G = 0 (only E given), but shells use its shear modulus; "
+                                      "give G or NU on the MAT1")
 
 
 def _rectangle_torsion(a: float, b: float) -> float:
@@ -95,11 +131,26 @@ def _pbarl_section(card: Card) -> tuple[float, float, float, float, float, float
       J = 2 t3 t4 (DIM1 − t4)² (DIM2 − t3)² / (DIM1 t4 + DIM2 t3 − t4² − t3²);
       K = web-area ratio: K1 = 2·DIM4·DIM2 / A (side walls carry shear along y),
       K2 = 2·DIM3·DIM1 / A (top and bottom walls carry shear along z).
+
+    Dimensions must be > 0 and the properties finite (DIM1 = 1.E200 overflows r⁴).
     """
     dims = [card[f"DIM{k}"] for k in range(1, 5) if f"DIM{k}" in card.values]
     for k, d in enumerate(dims, 1):
         if d <= 0.0:
             raise card.error(f"DIM{k}", f"dimensions must be > 0, got {d}")
+    try:
+        values = _pbarl_formulas(card, dims)
+    except OverflowError:  # float ** raises where float * gives inf
+        values = (np.inf,)
+    if not np.all(np.isfinite(values)):
+        k = int(np.argmax(dims)) + 1
+        raise card.error(f"DIM{k}", f"DIM{k} = {dims[k - 1]}: the section properties (A, I1, I2, J) overflow "
+                                    "a 64-bit real")
+    return values
+
+
+def _pbarl_formulas(card: Card, dims: list[float]) -> tuple[float, float, float, float, float, float]:
+    """The formulas of :func:`_pbarl_section`, per section type."""
     kind = card["TYPE"]
     if kind == "BAR":
         b, h = dims
@@ -146,7 +197,7 @@ def _beam_sections(
                 raise card.error(key, f"{key} must be >= 0, got {value}")
         if card["NSM"] < 0.0:
             raise card.error("NSM", f"negative non-structural mass {card['NSM']}")
-        materials.append(_material(card, mat_rows, table))
+        materials.append(_material(card, mat_rows, table, j))
         values.append((area, i1, i2, j, k1, k2, card["NSM"]))
     columns = np.asarray(values, dtype=np.float64).reshape(-1, 7).T
     ids = _ints([c.id for c in cards])
@@ -172,7 +223,7 @@ def _rod_sections(
     ids = _ints([c.id for c in cards])
     sections = RodSections(
         ids=ids,
-        material=_ints([_material(c, mat_rows, table) for c in cards]),
+        material=_ints([_material(c, mat_rows, table, c["J"]) for c in cards]),
         A=_f64([c["A"] for c in cards]),
         J=_f64([c["J"] for c in cards]),
         nsm=_f64([c["NSM"] for c in cards]),

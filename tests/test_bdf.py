@@ -165,7 +165,7 @@ def test_error_integer_expected():
     "text, parts",
     [
         ("GRID,x\n", ("m.bdf:1: GRID field 2 (ID): expected an integer, got 'x'",)),
-        ("GRID,0\n", ("m.bdf:1: GRID field 2 (ID): expected a positive integer, got '0'",)),
+        ("GRID,0\n", ("m.bdf:1: GRID field 2 (ID): expected an id in 1..99,999,999, got '0'",)),
         ("CBAR,1,1,1\n", ("m.bdf:1: CBAR 1 field 5 (GB): required field is blank",)),
         ("PROD,3,1\n", ("m.bdf:1: PROD 3 field 4 (A): required field is blank",)),
         ("MAT1,3,,,0.3\n", ("m.bdf:1: MAT1 3 field 3 (E): E and G may not both be blank",)),

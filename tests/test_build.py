@@ -262,12 +262,14 @@ def test_spc_set_selection():
     assert (1, 1) in labels and (3, 1) not in labels and (3, 4) in labels and (10, 4) not in labels
 
 
-def test_unknown_cards_warn_and_lumped_default():
+def test_unknown_structural_cards_refused_unless_allowed_and_lumped_default():
     text = FRAME.replace("PARAM,COUPMASS,1\n", "").replace("ENDDATA", "CHEXA,1,1,1,2,3\nENDDATA")
     line = text.splitlines().index("CHEXA,1,1,1,2,3") + 1
+    _fails(text, f"m.bdf: unsupported bulk-data cards that may define structure: CHEXA x1 (m.bdf:{line}): "
+                 "the model would lack them; build_model(..., allow_unsupported=True) builds it without them")
     expected = f"m.bdf: unsupported bulk-data cards ignored: CHEXA x1 (m.bdf:{line})"
     with pytest.warns(UserWarning, match=re.escape(expected)):
-        model = _build(text)
+        model = _build(text, allow_unsupported=True)
     assert model.lumped is True  # no PARAM COUPMASS: Nastran default is lumped
     assert _build(FRAME.replace("COUPMASS,1", "COUPMASS,-1")).lumped is True
 

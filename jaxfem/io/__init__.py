@@ -5,3 +5,5 @@ from ._bdf import read_bdf_text as read_bdf_text
 from ._bulkdata import BulkData as BulkData
 from ._bulkdata import BulkDataError as BulkDataError
 from ._bulkdata import Card as Card
+from ._bulkdata import IdRanges as IdRanges
+from ._bulkdata import UnsupportedCardsError as UnsupportedCardsError

@@ -3,14 +3,18 @@
 The reader turns text into :class:`BulkData`: cards of the supported kinds with typed
 raw values (int, float, str, tuple, or None for a blank field without default), each
 remembering where it came from. Cards of any other kind are listed in
-:attr:`BulkData.unknown`, never silently dropped. Every malformed or unsupported entry
+:attr:`BulkData.unknown`, never silently dropped (:func:`jaxfem.build_model` refuses
+those that may define structure, see :meth:`BulkData.structural_unknown`). Every malformed or unsupported entry
 raises :class:`BulkDataError` naming file, line, card and field, e.g.
 ``model.bdf:17: CBAR 1001 field 4 (GA): expected an integer, got '1.5'``.
 
 Format rules (MSC Nastran QRG, "Bulk Data Entry Format"):
 
-- ``$`` starts a comment; blank lines are skipped; anything before ``BEGIN BULK`` (if
+- Lines end at ``\\n`` or ``\\r\\n`` (a leading UTF-8 byte-order mark is dropped); ``$``
+  starts a comment; blank lines are skipped; anything before ``BEGIN BULK`` (if
   present) and after ``ENDDATA`` is ignored; ``INCLUDE`` is refused.
+- Fields hold printable ASCII; reals are finite; ids are integers in 1..99,999,999,
+  other integers fit in 32 bits (see :mod:`jaxfem.io._fields`).
 - A line holding a comma is free field; otherwise fixed columns, 80 at most (tabs
   expand to 8-column stops). Field 1 is the card name (``NAME*`` = large field);
   small-field lines carry 8 data fields, large-field lines 4 (two lines per row of 8).
@@ -39,7 +43,7 @@ Cards (values keyed by QRG field names; see ``jaxfem.io._cards._PARSERS``) and w
   G12 required);
 - RBE2 (``GM`` tuple), RBE3 (``GROUPS`` of (WT, C, grids); UM refused, ALPHA kept
   unused), MPC (``TERMS`` of (G, C, A), single components 1..6, A1 ≠ 0), SPC (one card
-  per G/C/D triplet), SPC1 (``G`` tuple, THRU), PARAM.
+  per G/C/D triplet), SPC1 (``G`` an :class:`IdRanges`: THRU ranges are not expanded), PARAM.
 
 Here the entry points; the result types are in :mod:`jaxfem.io._bulkdata`, lines and
 fields in :mod:`jaxfem.io._fields`, the card readers in :mod:`jaxfem.io._cards`.

@@ -2,20 +2,106 @@
 
 A :class:`Card` holds its name, typed values keyed by QRG field name (MSC Nastran QRG,
 "Bulk Data Entry Format") and where each came from; :class:`BulkData` the supported cards
-by name in file order and the locations of the unsupported ones; a
+by name in file order and the locations of the unsupported ones (split into those that
+may define structure and those that cannot change stiffness or mass); a
 :class:`BulkDataError` names file, line, card, id and field, e.g.
-``model.bdf:17: CBAR 1001 field 4 (GA): expected an integer, got '1.5'``.
+``model.bdf:17: CBAR 1001 field 4 (GA): expected an integer, got '1.5'``. SPC1 ``THRU``
+lists are :class:`IdRanges`, never expanded.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
-
-Value = int | float | str | tuple | None
 
 
 class BulkDataError(ValueError):
     """Malformed, inconsistent or unsupported bulk data; the message says where and what."""
+
+
+class UnsupportedCardsError(BulkDataError):
+    """Unsupported cards that define structure (elements, properties, materials,
+    constraints, ...): the model would be built without them. ``problem`` is the message
+    without its remedy, ``names`` the card names."""
+
+    def __init__(self, problem: str, names: list[str]):
+        super().__init__(f"{problem}; build_model(..., allow_unsupported=True) builds it without them")
+        self.problem = problem
+        self.names = names
+
+
+class IdRanges(Sequence):
+    """Ids listed with ``THRU`` (SPC1): runs (first, last) kept as they are, so that
+    ``1 THRU 99999999`` is two integers, never a list of 10⁸. Iterates, indexes and
+    compares like the tuple of the ids it stands for."""
+
+    __slots__ = ("runs",)
+
+    def __init__(self, runs):
+        merged: list[tuple[int, int]] = []
+        for a, b in runs:  # contiguous runs merged: (1, 1), (2, 4) is (1, 4)
+            if merged and a == merged[-1][1] + 1:
+                merged[-1] = (merged[-1][0], b)
+            else:
+                merged.append((int(a), int(b)))
+        self.runs = tuple(merged)
+
+    def __len__(self) -> int:
+        return sum(b - a + 1 for a, b in self.runs)
+
+    def __iter__(self) -> Iterator[int]:
+        for a, b in self.runs:
+            yield from range(a, b + 1)
+
+    def __contains__(self, value) -> bool:
+        return any(a <= value <= b for a, b in self.runs)
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return tuple(self)[i]
+        i = i + len(self) if i < 0 else i
+        for a, b in self.runs:
+            if 0 <= i <= b - a:
+                return a + i
+            i -= b - a + 1
+        raise IndexError("IdRanges index out of range")
+
+    def __eq__(self, other) -> bool:
+        if isinstance(other, IdRanges):
+            return self.runs == other.runs
+        if isinstance(other, tuple):
+            return len(self) == len(other) and all(x == y for x, y in zip(self, other))
+        return NotImplemented
+
+    def __hash__(self) -> int:
+        return hash(self.runs)
+
+    def __repr__(self) -> str:
+        return "IdRanges(" + ", ".join(f"{a}" if a == b else f"{a} THRU {b}" for a, b in self.runs) + ")"
+
+
+Value = int | float | str | tuple | IdRanges | None
+
+# Unsupported cards that cannot change stiffness or mass (MSC QRG): eigenvalue and solution
+# control, loads, output, design, aero, reduction sets. Ignored with a warning; any other
+# unsupported card is taken to define structure (an element, property, material, rigid
+# element, constraint set, coordinate system, matrix such as DMIG) and refused by
+# build_model unless allow_unsupported=True.
+_NO_EFFECT = frozenset({
+    "EIGRL", "EIGR", "EIGC", "EIGB", "EIGP", "DAREA", "DLOAD", "DPHASE", "DELAY", "LOAD", "LSEQ", "GRAV",
+    "ACCEL", "ACCEL1", "RFORCE", "SPCD", "DEFORM", "SET1", "SET2", "SET3", "PLOTEL", "MONPNT1", "MONPNT3",
+    "SUPORT", "SUPORT1", "ASET", "ASET1", "BSET", "BSET1", "CSET", "CSET1", "QSET", "QSET1", "OMIT", "OMIT1",
+    "USET", "USET1", "SEQGP", "SEQSET", "SPOINT", "EPOINT", "DESVAR", "DCONSTR", "DCONADD", "DOPTPRM",
+    "DLINK", "DEQATN", "DTABLE", "DTI", "AERO", "AEROS", "AESTAT", "AELIST", "AEFACT", "FLUTTER", "FLFACT",
+    "TRIM", "NLPARM", "NLPCI", "RANDPS", "RANDT1", "ECHOON", "ECHOOFF",
+})
+_NO_EFFECT_PREFIXES = ("FREQ", "TABLE", "TABD", "TABRND", "TSTEP", "RLOAD", "TLOAD", "PLOAD", "FORCE", "MOMENT",
+                       "TEMP", "DRESP", "DVPREL", "DVMREL", "DVCREL", "CAERO", "PAERO", "SPLINE", "MKAERO", "AESURF")
+
+
+def _no_effect(name: str) -> bool:
+    """True for a card that cannot change stiffness or mass (see ``_NO_EFFECT``)."""
+    return name in _NO_EFFECT or name.startswith(_NO_EFFECT_PREFIXES)
 
 
 @dataclass(frozen=True)
@@ -58,10 +144,15 @@ class BulkData:
         """Cards of one kind in file order (empty list if none)."""
         return self.cards.get(name, [])
 
-    def unknown_summary(self) -> str:
-        """One line per unsupported card kind, with its count and first locations."""
+    def structural_unknown(self) -> list[str]:
+        """Names of the unsupported cards that may define structure (all but those that
+        cannot change stiffness or mass: solution control, loads, output, ...)."""
+        return sorted(name for name in self.unknown if not _no_effect(name))
+
+    def unknown_summary(self, names: list[str] | None = None) -> str:
+        """One line per unsupported card kind (all, or ``names``), with its count and first locations."""
         out = []
-        for name, places in sorted(self.unknown.items()):
+        for name, places in sorted((n, self.unknown[n]) for n in (self.unknown if names is None else names)):
             where = ", ".join(f"{f}:{n}" for f, n in places[:3])
             more = f", ... ({len(places) - 3} more)" if len(places) > 3 else ""
             out.append(f"{name} x{len(places)} ({where}{more})")

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from ._bulkdata import BulkDataError, Card, Value, _where
+from ._bulkdata import BulkDataError, Card, IdRanges, Value, _where
 from ._fields import _INT, _REQUIRED, _SAME_AS_ID, _WORD, _id, _int, _Raw, _re, _read, _Spec
 
 
@@ -176,27 +176,33 @@ def _spc(raw: _Raw) -> list[Card]:
 
 
 def _spc1(raw: _Raw) -> list[Card]:
-    """SPC1: SID, C, then grids G1, G2, ... with ``Gi THRU Gj`` ranges; blanks skipped."""
+    """SPC1: SID, C, then grids G1, G2, ... with ``Gi THRU Gj`` ranges; blanks skipped.
+
+    ``G`` is an :class:`IdRanges`: a range is kept as (first, last), never expanded (the
+    builder checks that its grids exist without listing them).
+    """
     values, positions = _read(raw, (_id("SID"), ("C", "dof", _REQUIRED)))
-    grids: list[int] = []
+    runs: list[tuple[int, int]] = []
     i = 2
     while i < len(raw.texts):
         text = raw.text(i).upper()
         if text == "THRU":
-            if not grids:
+            if not runs:
                 raise raw.error(i, "THRU", "THRU must follow a grid id")
             last = raw.get(i + 1, "G", "id", _REQUIRED)
-            if last < grids[-1]:
-                raise raw.error(i + 1, "G", f"THRU range ends below its start ({grids[-1]} THRU {last})")
-            grids.extend(range(grids[-1] + 1, last + 1))
+            first, end = runs[-1]
+            if last < end:
+                raise raw.error(i + 1, "G", f"THRU range ends below its start ({end} THRU {last})")
+            runs[-1] = (first, last)
             i += 2
             continue
         if text:
-            grids.append(raw.get(i, "G", "id"))
+            g = raw.get(i, "G", "id")
+            runs.append((g, g))
         i += 1
-    if not grids:
+    if not runs:
         raise raw.error(2, "G1", "required field is blank")
-    return [raw.card({**values, "G": tuple(grids)}, {**positions, "G": 2})]
+    return [raw.card({**values, "G": IdRanges(runs)}, {**positions, "G": 2})]
 
 
 def _rbe2(raw: _Raw) -> list[Card]:
@@ -406,6 +412,7 @@ def _pbush(raw: _Raw) -> list[Card]:
         default = 0.0 if keyword == "K" else None
         values[keyword] = tuple(raw.get(row + 2 + k, f"{keyword}{k + 1}", "real", default) for k in range(n))
         positions[keyword] = row + 2
+        positions.update({f"{keyword}{k + 1}": row + 2 + k for k in range(n)})
         for i in range(row + 2 + n, row + 8):
             raw.blank(i)
     return [raw.card(values, positions)]

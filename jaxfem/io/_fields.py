@@ -6,11 +6,25 @@ large field (16 columns, ``NAME*``), and continuation lines are joined to their 
 required, Nastran exponents such as ``1.D-3`` and ``7.2+10``), number, word, DoF digits
 or anything, against a schema of (key, kind, default) per field (MSC Nastran QRG, "Bulk
 Data Entry Format"). Errors are :class:`BulkDataError` naming file, line, card and field.
+
+What every field must be, whatever its card (the one check per input kind):
+
+- lines end at ``\\n`` or ``\\r\\n`` only (not at form feeds or U+2028, which
+  ``str.splitlines`` would split on, moving every later line number); a leading UTF-8
+  byte-order mark is dropped;
+- a field holds printable ASCII only: Python's ``int``/``float`` would read full-width or
+  Arabic-Indic digits, and ``str.upper`` folds ``ı`` into ``I``;
+- a real is finite in 64-bit floating point (``1.E400`` is refused, not read as inf; NaN
+  and inf are not Nastran reals);
+- an id is an integer in 1..99,999,999 (QRG: "0 < ID < 100,000,000"), any other integer
+  fits in 32 bits, so that no value overflows the int64 arrays of the model.
 """
 
 from __future__ import annotations
 
+import math
 import re
+import unicodedata
 from dataclasses import dataclass, field
 
 from ._bulkdata import BulkDataError, Card, Value, _where
@@ -18,13 +32,27 @@ from ._bulkdata import BulkDataError, Card, Value, _where
 _REQUIRED = object()  # schema default: the field must not be blank
 _SAME_AS_ID = object()  # schema default: the card's id (PID = EID on elements)
 
-_INT = re.compile(r"[+-]?\d+")
-_REAL = re.compile(r"([+-]?(?:\d+\.\d*|\.\d+))((?:[ED][+-]?|[+-])\d+)?")
+_INT = re.compile(r"[+-]?\d+", re.ASCII)
+_REAL = re.compile(r"([+-]?(?:\d+\.\d*|\.\d+))((?:[ED][+-]?|[+-])\d+)?", re.ASCII)
 _WORD = re.compile(r"[A-Z][A-Z0-9_]*")
 _NAME = re.compile(r"[A-Z][A-Z0-9]*")
 _BEGIN_BULK = re.compile(r"\s*BEGIN\s+BULK\b")
 _ENDDATA = re.compile(r"\s*ENDDATA\b")
 _INCLUDE = re.compile(r"\s*INCLUDE\b")
+_LINE_END = re.compile(r"\r?\n")
+_SPACE = " \t\r\f\v"  # ASCII white space: strip() alone would also remove U+00A0, U+3000, ...
+_ID_MAX = 99_999_999  # QRG: ids are integers 0 < ID < 100,000,000
+_INT_MAX = 2**31 - 1  # other integers: 32-bit
+
+
+def _character_error(text: str) -> str | None:
+    """Why a field is refused for its characters (anything but printable ASCII), or None."""
+    if text.isascii() and text.isprintable():
+        return None
+    ch = next(c for c in text if not (c.isascii() and c.isprintable()))
+    name = unicodedata.name(ch, "")
+    note = ": a byte that is not UTF-8" if ch == "\ufffd" else ""
+    return f"character {ch!r} (U+{ord(ch):04X}{' ' + name if name else ''}{note}) is not allowed: bulk data is printable ASCII"
 
 
 # ---------------------------------------------------------------------------------------
@@ -41,13 +69,24 @@ class _Line:
 
 
 def _split(file: str, number: int, text: str, card: str | None) -> _Line | None:
-    """Fields of one physical line; None for blank and comment lines."""
-    text = text.split("$", 1)[0].rstrip()
-    if not text.strip():
+    """Fields of one physical line; None for blank and comment lines. Fields 1 and 10 are
+    checked for their characters here, data fields when read (:meth:`_Raw.text`)."""
+    text = text.split("$", 1)[0].rstrip(_SPACE)
+    if not text.strip(_SPACE):
         return None
+
+    def checked(value: str, place: int, first: str = "") -> str:
+        """``value`` of field ``place`` (1 or 10); ``first``: field 1 of the line."""
+        why = _character_error(value)
+        if why is not None:
+            head = value if place == 1 else first
+            label = card if card and (not head or head.startswith(("+", "*"))) else head.rstrip("*") or "(blank)"
+            raise BulkDataError(f"{_where(file, number, label, None, place)}: {why}")
+        return value
+
     if "," in text:
-        parts = [p.strip() for p in text.split(",")]
-        first = parts[0].upper()
+        parts = [p.strip(_SPACE) for p in text.split(",")]
+        first = checked(parts[0], 1).upper()
         large = first.endswith("*") or first.startswith("*")
         n = 4 if large else 8
         if len(parts) > n + 2:
@@ -56,7 +95,7 @@ def _split(file: str, number: int, text: str, card: str | None) -> _Line | None:
                 f"at most {n + 2} (field 1, {n} data fields, continuation field)"
             )
         data = (parts[1 : n + 1] + [""] * n)[:n]
-        last = parts[n + 1] if len(parts) > n + 1 else ""
+        last = checked(parts[n + 1], 10, first) if len(parts) > n + 1 else ""
         return _Line(number, first, data, last, large)
     text = text.expandtabs(8)
     if len(text) > 80:
@@ -64,11 +103,11 @@ def _split(file: str, number: int, text: str, card: str | None) -> _Line | None:
             f"{_where(file, number, card or text[:8].strip().upper())}: fixed-format line is "
             f"{len(text)} columns long; at most 80 (use free field for longer lines)"
         )
-    first = text[:8].strip().upper()
+    first = checked(text[:8].strip(_SPACE), 1).upper()
     large = first.endswith("*") or first.startswith("*")
     width, n = (16, 4) if large else (8, 8)
-    data = [text[8 + i * width : 8 + (i + 1) * width].strip() for i in range(n)]
-    return _Line(number, first, data, text[72:80].strip(), large)
+    data = [text[8 + i * width : 8 + (i + 1) * width].strip(_SPACE) for i in range(n)]
+    return _Line(number, first, data, checked(text[72:80].strip(_SPACE), 10, first), large)
 
 
 @dataclass
@@ -90,8 +129,14 @@ class _Raw:
         self.texts += line.data
         self.lines += [line.number] * len(line.data)
 
-    def text(self, i: int) -> str:
-        return self.texts[i] if i < len(self.texts) else ""
+    def text(self, i: int, key: str | None = None) -> str:
+        """Text of data field ``i`` ("" past the end); a located error for a character
+        outside printable ASCII."""
+        text = self.texts[i] if i < len(self.texts) else ""
+        why = _character_error(text)
+        if why is not None:
+            raise self.error(i, key, why)
+        return text
 
     def error(self, i: int, key: str | None, message: str) -> BulkDataError:
         line = self.lines[min(i, len(self.lines) - 1)] if self.lines else self.line
@@ -99,19 +144,24 @@ class _Raw:
 
     def get(self, i: int, key: str, kind: str, default: object = None) -> Value:
         """Typed value of data field ``i`` (0-based over the whole card)."""
-        text = self.text(i)
+        text = self.text(i, key)
         if not text:
             if default is _REQUIRED:
                 raise self.error(i, key, "required field is blank")
             return self.ident if default is _SAME_AS_ID else default
         value = _convert(text, kind)
         if value is None:
-            expected = "a positive integer" if kind == "id" and _INT.fullmatch(text) else _KIND_NAMES[kind]
-            raise self.error(i, key, f"expected {expected}, got {text!r}")
+            raise self.error(i, key, f"expected {_KIND_NAMES[kind]}, got {text!r}")
+        if isinstance(value, float) and not math.isfinite(value):
+            raise self.error(i, key, f"real number out of range: {_short(text)!r} overflows a 64-bit real (|x| < 1.8E+308)")
+        if kind == "id" and not 1 <= value <= _ID_MAX:
+            raise self.error(i, key, f"expected an id in 1..99,999,999, got {_short(text)!r}")
+        if isinstance(value, int) and abs(value) > _INT_MAX:
+            raise self.error(i, key, f"integer out of range: {_short(text)!r} does not fit in 32 bits (|n| < 2**31)")
         return value
 
     def blank(self, i: int, key: str | None = None, why: str = "must be blank") -> None:
-        if self.text(i):
+        if self.text(i, key):
             raise self.error(i, key, f"{why}, got {self.text(i)!r}")
 
     def end(self, n: int) -> None:
@@ -125,7 +175,7 @@ class _Raw:
 
 
 def _logical_cards(text: str, file: str) -> list[_Raw]:
-    lines = text.splitlines()
+    lines = _LINE_END.split(text.removeprefix("\ufeff"))
     start = next(
         (i + 1 for i, t in enumerate(lines) if _BEGIN_BULK.match(t.split("$", 1)[0].upper())), 0
     )
@@ -187,12 +237,22 @@ _KIND_NAMES = {
 }
 
 
+def _short(text: str) -> str:
+    return text if len(text) <= 24 else text[:20] + "..."
+
+
 def _real(text: str) -> float | None:
     m = _REAL.fullmatch(text.upper())
     if m is None:
         return None
     mantissa, exponent = m.groups()
     return float(mantissa + ("e" + exponent.lstrip("ED") if exponent else ""))
+
+
+def _integer(text: str) -> int:
+    """int(text) of an integer field; beyond 20 characters a stand-in that is out of every
+    range (int() refuses more than 4,300 digits, and no id or integer field is that long)."""
+    return int(text) if len(text) <= 20 else (-1 if text.startswith("-") else 1) * 10**20
 
 
 def _convert(text: str, kind: str) -> Value:
@@ -202,9 +262,7 @@ def _convert(text: str, kind: str) -> Value:
     if kind in ("int", "id", "dof"):
         if not is_int:
             return None
-        value = int(text)
-        if kind == "id" and value <= 0:
-            return None
+        value = _integer(text)
         if kind == "dof" and not (set(text) <= set("123456") and len(set(text)) == len(text)):
             return None
         return value
@@ -213,9 +271,9 @@ def _convert(text: str, kind: str) -> Value:
     if kind == "word":
         return upper if _WORD.fullmatch(upper) else None
     if kind == "num":
-        return int(text) if is_int else _real(text)
+        return _integer(text) if is_int else _real(text)
     if is_int:  # "any"
-        return int(text)
+        return _integer(text)
     real = _real(text)
     return real if real is not None else (upper if _WORD.fullmatch(upper) else None)
 
