@@ -9,6 +9,7 @@ instead: ``a`` and the ply angle ``theta`` (radians, so bounded below by −1 ra
 
 from __future__ import annotations
 
+import difflib
 import tomllib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -44,6 +45,134 @@ _MATERIAL_COLUMNS = (("beam_sections", "material"), ("rod_sections", "material")
                      ("shell_sections", "materials"), ("shell_sections", "ply_material"))
 
 
+class FieldError(ValueError):
+    """A schema error on one key of a parameter or of the options: ``key`` (as written in
+    the file, e.g. ``pids``, ``max_iterations``) and the message ``text`` (what was
+    expected, what was given); ``owner`` (``parameter 'cols'``, ``options``) starts the
+    message. A file's parser rewrites it with the file and the table (``parameter[2]``)."""
+
+    def __init__(self, key: str, text: str, owner: str = ""):
+        super().__init__(f"{owner}: {key}: {text}" if owner else f"{key}: {text}")
+        self.key, self.text = key, text
+
+
+class _Expected(Exception):
+    """Raised by a validator: ``str(self)`` is what the value should have been."""
+
+
+def _show(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
+
+
+def _finite(v) -> float | None:
+    """``v`` as a finite float, or None (not a number, a bool, NaN, ±inf, an int too big)."""
+    if not isinstance(v, (int, float, np.integer, np.floating)) or isinstance(v, (bool, np.bool_)):
+        return None
+    try:
+        f = float(v)
+    except OverflowError:
+        return None
+    return f if np.isfinite(f) else None
+
+
+def _integer(low: int, high: int | None = None):
+    what = f"an integer ≥ {low}" + (f" and ≤ {high}" if high is not None else "")
+
+    def check(v):
+        if not _is_int(v) or v < low or (high is not None and v > high):
+            raise _Expected(what)
+        return int(v)
+    return check
+
+
+def _number(low: float, *, strict: bool, high: float | None = None):
+    what = f"a finite number {'>' if strict else '≥'} {low:g}" + (f" and ≤ {high:g}" if high is not None else "")
+
+    def check(v):
+        f = _finite(v)
+        if f is None or (f <= low if strict else f < low) or (high is not None and f > high):
+            raise _Expected(what)
+        return f
+    return check
+
+
+def _choice(*options: str):
+    what = " | ".join(repr(o) for o in options)
+
+    def check(v):
+        if not isinstance(v, str) or v not in options:
+            raise _Expected(f"one of {what}")
+        return v
+    return check
+
+
+def _integers(what: str, *, nonempty: bool):
+    """An array of integers ≥ 1 (ids, mode numbers): bools and 1.7 refused, not truncated."""
+    what = f"{'a non-empty' if nonempty else 'an'} array of {what} (integers ≥ 1)"
+
+    def check(v):
+        if not isinstance(v, (list, tuple, np.ndarray)) or (nonempty and not len(v)) \
+                or not all(_is_int(x) and x >= 1 for x in v):
+            raise _Expected(what)
+        return tuple(int(x) for x in v)
+    return check
+
+
+def _name(v):
+    if not isinstance(v, str) or not v.strip():
+        raise _Expected("a non-empty string")
+    return v
+
+
+def _bounds(v, floor: str = "≥"):
+    """Two finite numbers, ``floor``: ``≥`` −1 ≤ lower, ``>`` −1 < lower (α ≤ −1 would be a
+    zero or negative value), lower < upper."""
+    if not isinstance(v, (list, tuple, np.ndarray)) or len(v) != 2:
+        raise _Expected("[lower, upper]: two numbers")
+    lower, upper = _finite(v[0]), _finite(v[1])
+    if lower is None or upper is None:
+        raise _Expected("[lower, upper]: two finite numbers")
+    if lower >= upper:
+        raise _Expected("[lower, upper] with lower < upper" + (" (reversed?)" if lower > upper else ""))
+    if lower < -1.0 or (floor == ">" and lower == -1.0):
+        raise _Expected(f"lower {floor} -1 (α = -1 is a value of 0, below it a negative one)")
+    return (lower, upper)
+
+
+def _weight(v):
+    if isinstance(v, str) and v == "auto":
+        return v
+    try:
+        return _number(0.0, strict=True)(v)
+    except _Expected:
+        raise _Expected("\"auto\" or a finite number > 0") from None
+
+
+def _checked(key: str, check, value):
+    """``check(value)``, or a :class:`FieldError` naming ``key``, the expectation and the value."""
+    try:
+        return check(value)
+    except _Expected as err:
+        raise FieldError(key, f"expected {err}, got {_show(value)}") from None
+
+
+def _file_bounds(v):
+    """In a parameter file, lower > −1 strictly (a bound at α = −1, a value of 0, is a slip)."""
+    return _bounds(v, ">")
+
+
+_PARAMETER_SCHEMA = {
+    "name": _name, "kind": _choice(*KINDS), "pids": _integers("property ids", nonempty=False),
+    "eids": _integers("element ids", nonempty=False), "nodes": _integers("grid ids", nonempty=False),
+    "bounds": _bounds,
+}
+
+
 @dataclass(frozen=True)
 class Parameter:
     """One updating parameter: a relative factor on the values of a target.
@@ -62,6 +191,12 @@ class Parameter:
     and ``nsm`` on shell ``eids`` scale those elements' own factor or non-structural mass
     (:class:`jaxfem.Shells` ``parts``, ``nsm``: a patch). ``bounds``: plausible range of α, reported (not
     enforced).
+
+    Checked on construction (:class:`FieldError` naming the key): ``name`` a non-empty
+    string, ``kind`` one of :data:`KINDS`, ids integers ≥ 1 (a bool or 1.7 is refused,
+    not truncated), ``bounds`` two finite numbers, −1 ≤ lower < upper, and the targets
+    the kind takes. Whether the targets hold what the kind scales is checked against a
+    model by :func:`parameterise`.
     """
 
     name: str
@@ -72,19 +207,48 @@ class Parameter:
     bounds: tuple[float, float] = (-0.5, 1.0)
 
     def __post_init__(self):
-        if self.kind not in KINDS:
-            raise ValueError(f"parameter {self.name!r}: kind {self.kind!r} is not one of {KINDS}")
+        owner = f"parameter {self.name!r}"
+        for key, check in _PARAMETER_SCHEMA.items():
+            try:
+                object.__setattr__(self, key, _checked(key, check, getattr(self, key)))
+            except FieldError as err:
+                raise FieldError(err.key, err.text, owner) from None
+
+        def fail(key, text):
+            raise FieldError(key, text, owner)
+
         if not (self.pids or self.eids or self.nodes):
-            raise ValueError(f"parameter {self.name!r}: give pids, eids or nodes")
+            fail("pids", "no target: give pids, eids or nodes")
         if self.nodes and self.kind not in ("k", "m"):
-            raise ValueError(f"parameter {self.name!r}: nodes = [...] is only for kinds k and m")
+            fail("nodes", f"nodes = [...] is only for kinds k and m, not kind {self.kind}")
         if self.kind == "m" and self.pids:
-            raise ValueError(f"parameter {self.name!r}: kind m (CONM2) targets eids or nodes, not pids")
+            fail("pids", "kind m (CONM2) targets eids or nodes, not pids")
         if self.kind in _SHELL_ELEMENT and self.eids and not self.pids:
             pass
         elif self.kind in _PIDS_ONLY:
-            if self.eids or not self.pids:
-                raise ValueError(f"parameter {self.name!r}: kind {self.kind} needs pids = [...]")
+            if self.eids:
+                fail("eids", f"kind {self.kind} needs pids = [...], not eids")
+            if not self.pids:
+                fail("pids", f"kind {self.kind} needs pids = [...]")
+
+
+MAX_ITERATIONS = 100_000  # the loop keeps one history row per accepted iteration
+
+_OPTIONS_SCHEMA = {
+    "active_modes": _integers("test mode numbers", nonempty=True),
+    "passive_modes": _integers("test mode numbers", nonempty=False),
+    "residual": _choice("eigenvalue", "eigenvector", "combined"),
+    "eigenvalue_weight": _weight,
+    "regularisation": _number(0.0, strict=False),
+    "solver": _choice("levenberg-marquardt", "gauss-newton"),
+    "max_iterations": _integer(1, MAX_ITERATIONS),
+    "tolerance": _number(0.0, strict=True),
+    "min_mac": _number(0.0, strict=False, high=1.0),
+    "max_freq_dev": _number(0.0, strict=True),
+    "n_model_modes": _integer(1),
+    "eigensolver": _choice("auto", "dense", "sparse"),
+}
+_OPTIONAL = {"active_modes", "n_model_modes"}  # None: the default rule
 
 
 @dataclass(frozen=True)
@@ -97,6 +261,10 @@ class Options:
     or a number. ``regularisation``: μ of W_p = μ I (eq. 3.4) on θ. ``tolerance``:
     convergence when max |Δα| ≤ tolerance between iterations (§4.2.5.1, footnote 8).
     ``eigensolver``: ``auto``, ``dense`` or ``sparse`` (:func:`jaxfem.modes`).
+
+    Every value is checked on construction against the schema of docs/parameters.md (type
+    and range; a :class:`FieldError` naming the key): the one check of the TOML table and
+    of Python callers alike.
     """
 
     active_modes: tuple[int, ...] | None = None
@@ -113,16 +281,37 @@ class Options:
     eigensolver: str = "auto"
 
     def __post_init__(self):
-        if self.residual not in ("eigenvalue", "eigenvector", "combined"):
-            raise ValueError(f"options.residual {self.residual!r}: eigenvalue | eigenvector | combined")
-        if self.solver not in ("levenberg-marquardt", "gauss-newton"):
-            raise ValueError(f"options.solver {self.solver!r}: levenberg-marquardt | gauss-newton")
-        if self.eigenvalue_weight != "auto" and not float(self.eigenvalue_weight) > 0:
-            raise ValueError("options.eigenvalue_weight must be 'auto' or a positive number")
-        if self.eigensolver not in ("auto", "dense", "sparse"):
-            raise ValueError(f"options.eigensolver {self.eigensolver!r}: auto | dense | sparse")
-        if self.regularisation < 0 or self.tolerance <= 0 or self.max_iterations < 1:
-            raise ValueError("options: regularisation ≥ 0, tolerance > 0, max_iterations ≥ 1")
+        for key, check in _OPTIONS_SCHEMA.items():
+            value = getattr(self, key)
+            if not (value is None and key in _OPTIONAL):
+                try:
+                    object.__setattr__(self, key, _checked(key, check, value))
+                except FieldError as err:
+                    raise FieldError(err.key, err.text, "options") from None
+        both = sorted(set(self.active_modes or ()) & set(self.passive_modes))
+        if both:
+            raise FieldError("passive_modes", f"test modes {both} are also in active_modes: "
+                             "a mode is fitted or held out, not both", "options")
+
+    @classmethod
+    def from_dict(cls, table, where: str) -> Options:
+        """From the parsed ``[options]`` table; errors name ``where`` and ``options.KEY``."""
+        if not isinstance(table, dict):
+            raise ValueError(f"{where}: options: expected a table [options], got {_show(table)}")
+        _refuse_unknown(table, cls.__dataclass_fields__, where, "options.")
+        try:
+            return cls(**table)
+        except FieldError as err:
+            raise ValueError(f"{where}: options.{err.key}: {err.text}") from None
+
+
+def _refuse_unknown(table: dict, known, where: str, prefix: str) -> None:
+    """Unknown keys are errors (a typo such as ``bound`` would otherwise be ignored)."""
+    for key in table:
+        if key not in known:
+            near = difflib.get_close_matches(str(key), list(known), n=1)
+            hint = f" (did you mean {near[0]!r}?)" if near else ""
+            raise ValueError(f"{where}: {prefix}{key}: unknown key{hint}; known keys: {', '.join(known)}")
 
 
 @dataclass(frozen=True)
@@ -144,52 +333,55 @@ class ParameterSet:
 
     @classmethod
     def from_toml(cls, path: str | Path) -> ParameterSet:
-        """Read ``[[parameter]]`` entries and an optional ``[options]`` table."""
+        """Read ``[[parameter]]`` entries and an optional ``[options]`` table; every key is
+        checked before any computation (:meth:`from_dict`). Errors: ``ValueError`` naming
+        the file and the key."""
         path = Path(path)
         try:
-            data = tomllib.loads(path.read_text())
+            data = tomllib.loads(path.read_bytes().decode("utf-8"))
+        except UnicodeDecodeError as err:
+            raise ValueError(f"{path}: not UTF-8 text: {err}") from None
         except tomllib.TOMLDecodeError as err:
             raise ValueError(f"{path}: {err}") from None
-        unknown = set(data) - {"parameter", "options"}
-        if unknown:
-            raise ValueError(f"{path}: unknown top-level keys {sorted(unknown)}")
+        _refuse_unknown(data, ("parameter", "options"), str(path), "")
         return cls.from_dict(data, str(path))
 
     @classmethod
     def from_dict(cls, data: dict, where: str) -> ParameterSet:
-        """From the ``parameter`` list and ``options`` table of parsed TOML; errors name ``where``."""
-        params = []
-        for i, entry in enumerate(data.get("parameter", []), 1):
-            allowed = {"name", "kind", "pids", "eids", "nodes", "bounds"}
-            extra = set(entry) - allowed
-            if extra or "name" not in entry or "kind" not in entry:
-                raise ValueError(
-                    f"{where}: parameter #{i}: needs name and kind; allowed keys {sorted(allowed)}"
-                    + (f", unknown {sorted(extra)}" if extra else "")
-                )
-            try:
-                params.append(Parameter(
-                    name=str(entry["name"]), kind=str(entry["kind"]),
-                    pids=tuple(int(x) for x in entry.get("pids", ())),
-                    eids=tuple(int(x) for x in entry.get("eids", ())),
-                    nodes=tuple(int(x) for x in entry.get("nodes", ())),
-                    bounds=tuple(float(x) for x in entry.get("bounds", (-0.5, 1.0))),
-                ))
-            except ValueError as err:
-                raise ValueError(f"{where}: parameter #{i}: {err}") from None
-        if not params:
+        """From the ``parameter`` array and ``options`` table of parsed TOML.
+
+        The schema of docs/parameters.md, checked key by key before anything is computed;
+        a ``ValueError`` names ``where``, the key (``parameter[2].pids``, counted from 1
+        in file order, ``options.max_iterations``) and what was expected. Unknown keys are
+        errors. Bounds in a file need −1 < lower < upper.
+        """
+        entries = data.get("parameter", [])
+        if not isinstance(entries, list):
+            raise ValueError(f"{where}: parameter: expected [[parameter]] tables (an array of tables), "
+                             f"got {_show(entries)}")
+        if not entries:
             raise ValueError(f"{where}: no [[parameter]] declared")
-        opts = dict(data.get("options", {}))
-        known = set(Options.__dataclass_fields__)
-        if set(opts) - known:
-            raise ValueError(f"{where}: unknown options {sorted(set(opts) - known)}; allowed {sorted(known)}")
-        for key in ("active_modes", "passive_modes"):
-            if key in opts:
-                opts[key] = tuple(int(x) for x in opts[key])
-        try:
-            return cls(tuple(params), Options(**opts))
-        except (ValueError, TypeError) as err:
-            raise ValueError(f"{where}: {err}") from None
+        params, first = [], {}
+        for i, entry in enumerate(entries, 1):
+            key = f"parameter[{i}]"
+            if not isinstance(entry, dict):
+                raise ValueError(f"{where}: {key}: expected a table ([[parameter]]), got {_show(entry)}")
+            _refuse_unknown(entry, _PARAMETER_SCHEMA, where, key + ".")
+            for required in ("name", "kind"):
+                if required not in entry:
+                    raise ValueError(f"{where}: {key}.{required}: required (keys: name, kind, and pids, eids or nodes)")
+            label = f" (parameter {entry['name']!r})" if isinstance(entry["name"], str) else ""
+            try:
+                if "bounds" in entry:
+                    _checked("bounds", _file_bounds, entry["bounds"])
+                params.append(Parameter(**entry))
+            except FieldError as err:
+                raise ValueError(f"{where}: {key}.{err.key}: {err.text}{label}") from None
+            name = params[-1].name
+            if name in first:
+                raise ValueError(f"{where}: {key}.name: {name!r} is also the name of {first[name]}; names are unique")
+            first[name] = key
+        return cls(tuple(params), Options.from_dict(data.get("options", {}), where))
 
 
 class Parameterisation(eqx.Module):
@@ -316,8 +508,70 @@ def _material_rows(model: Model, pids: Sequence[int], types=(MAT1, MAT2, MAT8)) 
 _TYPE_NAMES = {MAT1: "MAT1", MAT2: "MAT2", MAT8: "MAT8"}
 
 
+class _Ids(list):
+    """Ids in a message: the first ten, then how many in all."""
+
+    def __repr__(self) -> str:
+        return list.__repr__(self) if len(self) <= 10 else list.__repr__(self[:10])[:-1] + f", … {len(self)} in all]"
+
+
+def _missing(wanted: Sequence[int], present) -> _Ids:
+    present = set(np.asarray(present).tolist())
+    return _Ids(int(i) for i in wanted if i not in present)
+
+
+def _block_problem(model: Model, p: Parameter) -> str | None:
+    """Why targets of the element kinds (``stiffness``, ``mass``, ``k``, ``m``) or the beam
+    section kinds have nothing ``p`` scales: each named id must hold it (None: fine). A
+    target without it would leave its column zero: α stays 0 and the update "converges"."""
+    blocks = lambda names: [getattr(model, n) for n in names]  # noqa: E731
+    cat = lambda arrays: np.concatenate([np.zeros(0, np.int64)] + [np.asarray(a) for a in arrays])  # noqa: E731
+    if p.kind in ("stiffness", "mass"):
+        names = jaxfem.STIFFNESS_BLOCKS if p.kind == "stiffness" else jaxfem.MASS_BLOCKS
+        eids = _missing(p.eids, cat(b.ids for b in blocks(names)))
+        if eids:
+            what = "CONM2 masses (no stiffness)" if p.kind == "stiffness" else "springs or bushes (no mass)"
+            return f"eids {eids} are {what}: nothing for kind {p.kind} to scale"
+        pids = _missing(p.pids, cat(b.pids for b in blocks(n for n in names if n != "masses")))
+        if pids:
+            other = "" if p.kind == "stiffness" else " (PELAS and PBUSH elements have no mass)"
+            return (f"pids {pids} are used by no element with a {p.kind} matrix{other}: "
+                    f"nothing for kind {p.kind} to scale")
+        return None
+    if p.kind == "k":
+        sb = blocks(("springs", "bushes"))
+        eids = _missing(p.eids, cat(b.ids for b in sb))
+        pids = _missing(p.pids, cat(b.pids for b in sb))
+        attached = cat(model.node_ids[b.nodes[b.nodes >= 0]] for b in sb)
+        nodes = _missing(p.nodes, attached)
+        for key, bad, what in (("eids", eids, "are not springs or bushes (CELAS, CBUSH)"),
+                               ("pids", pids, "are not PELAS or PBUSH properties"),
+                               ("nodes", nodes, "have no spring or bush attached")):
+            if bad:
+                return f"{key} {bad} {what}: nothing for kind k (spring and bush stiffness) to scale"
+        return None
+    if p.kind == "m":
+        c = model.masses
+        for key, bad, what in (("eids", _missing(p.eids, c.ids), "are not CONM2 masses"),
+                               ("nodes", _missing(p.nodes, model.node_ids[c.nodes]), "carry no CONM2 mass")):
+            if bad:
+                return f"{key} {bad} {what}: nothing for kind m (CONM2 mass) to scale"
+        return None
+    if p.kind in _SECTION:
+        rods = p.kind in ("A", "J")
+        pids = _missing(p.pids, cat([model.beam_sections.ids] + ([model.rod_sections.ids] if rods else [])))
+        if pids:
+            held = "PBAR/PBARL/PBEAM" + ("/PROD" if rods else "")
+            return f"pids {pids} are not {held} properties: nothing for kind {p.kind} to scale" \
+                + ("" if rods else " (a PROD has A and J only)")
+    return None
+
+
 def _target_problem(model: Model, p: Parameter) -> str | None:
-    """Why the target properties of a pids-only kind have nothing that ``p`` scales (None: fine)."""
+    """Why the targets of ``p`` have nothing that it scales (None: fine)."""
+    problem = _block_problem(model, p)
+    if problem or p.kind in ("stiffness", "mass", "k", "m") or p.kind in _SECTION:
+        return problem
     if p.kind in _SHELL_ELEMENT and p.eids:
         shells = np.concatenate([model.quads.ids, model.trias.ids])
         other = sorted(set(p.eids) - set(shells.tolist()))
@@ -429,8 +683,46 @@ def _private_materials(model: Model, pids: Sequence[int], types=(MAT1, MAT2, MAT
     return model
 
 
+def _column(model: Model, p: Parameter) -> tuple:
+    """What ``p`` scales, resolved (an element group, spring rows, ...): two parameters with
+    the same key have identical Jacobian columns."""
+    if p.kind in ("stiffness", "mass"):
+        return p.kind, frozenset(_element_group(model, p).tolist())
+    if p.kind == "k":
+        return p.kind, frozenset(_target_rows(model, model.springs, p).tolist()), \
+            frozenset(_target_rows(model, model.bushes, p).tolist())
+    if p.kind == "m":
+        c = model.masses
+        return p.kind, frozenset(np.union1d(_rows(c.ids, p.eids),
+                                            np.flatnonzero(np.isin(model.node_ids[c.nodes], p.nodes))).tolist())
+    if p.kind == "a":  # one coefficient of the frequency law, whatever the pids
+        return (p.kind,)
+    return p.kind, frozenset(p.pids), frozenset(p.eids)
+
+
+def identical_columns(model: Model, parameters: ParameterSet | Sequence[Parameter]) -> str | None:
+    """Parameters of the same kind on the same targets (however named: pids or their
+    eids), whose Jacobian columns are therefore identical, named pair by pair; None if
+    there are none. Only their combined effect is identifiable (JᵀJ is singular); the
+    parameter selection aids (:func:`updating.identifiability`) report such pairs too."""
+    params = tuple(parameters.parameters if isinstance(parameters, ParameterSet) else parameters)
+    seen, pairs = {}, []
+    for p in params:
+        column = _column(model, p)
+        if column in seen:
+            pairs.append(f"{seen[column].name!r} and {p.name!r} (kind {p.kind})")
+        seen.setdefault(column, p)
+    if not pairs:
+        return None
+    return (f"parameters {'; '.join(pairs)} scale the same targets: identical Jacobian columns, "
+            "only their combined effect is identifiable")
+
+
 def parameterise(model: Model, parameters: ParameterSet | Sequence[Parameter]) -> tuple[Model, Parameterisation]:
-    """Resolve parameters against a model; check every target exists.
+    """Resolve parameters against a model; check every target exists, holds what its
+    parameter's kind scales (an ``m`` on a CBAR, an ``I1`` on a PROD are refused): a
+    ``ValueError`` naming the parameter, its kind and those targets. Two parameters on the
+    same targets are left to :func:`identical_columns`.
 
     **Returns:** ``(model, parameterisation)``: the model possibly with private material
     rows for material parameters, and the pure ``apply(model, θ)`` map.
@@ -456,11 +748,6 @@ def parameterise(model: Model, parameters: ParameterSet | Sequence[Parameter]) -
         elif p.kind in _MATERIAL:
             model = _private_materials(model, p.pids, _MATERIAL[p.kind][1])
     for i, p in enumerate(params):
-        empty = (p.kind in ("stiffness", "mass") and not len(_element_group(model, p)))
-        if p.kind == "k":
-            empty = not (len(_target_rows(model, model.springs, p)) or len(_target_rows(model, model.bushes, p)))
-        if empty:
-            raise ValueError(f"parameter {p.name!r}: its target contains no element of kind {p.kind}")
         problem = _target_problem(model, p)
         if problem:
             raise ValueError(f"parameter {p.name!r}: {problem}")

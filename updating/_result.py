@@ -57,6 +57,7 @@ class UpdateResult:
     seconds: float
     sensor_modes: dict  # "before"/"after": (model frequencies in Hz, shapes at the sensors)
     parameterisation: Parameterisation = field(repr=False)
+    warnings: list[str] = field(default_factory=list)  # e.g. an under-determined fit (updating._solve)
 
     def table(self) -> list[dict]:
         """Parameters with their factors α (value = value₀·(1 + α))."""
@@ -66,13 +67,15 @@ class UpdateResult:
     def to_json(self) -> dict:
         """JSON-ready: parameters (name, kind, α, bounds, within bounds), convergence,
         the iteration history (:meth:`Iteration.to_json`, passive = not active), the
-        pairings before and after (:meth:`Pairing.to_json`), active and passive modes."""
+        pairings before and after (:meth:`Pairing.to_json`), active and passive modes,
+        ``warnings`` (why ``converged`` may say little, e.g. an under-determined fit)."""
         active = np.asarray(self.active, dtype=bool)
         parameters = [dict(row, bounds=list(p.bounds), within_bounds=bool(p.bounds[0] <= row["alpha"] <= p.bounds[1]))
                       for row, p in zip(self.table(), self.parameterisation.parameters)]
         return {
             "parameters": parameters,
             "converged": bool(self.converged),
+            "warnings": list(self.warnings),
             "iterations": int(self.iterations),
             "seconds": float(self.seconds),
             "history": [h.to_json(self.names, ~active) for h in self.history],

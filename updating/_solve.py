@@ -9,6 +9,7 @@ tolerance over an accepted step (thesis §4.2.5.1, footnote 8: 1e-3).
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Callable
 
 import equinox as eqx
@@ -22,7 +23,7 @@ from jaxfem._model import Opaque
 
 from ._compiled import Compiled
 from ._correlation import pair_modes
-from ._parameters import ParameterSet, parameterise
+from ._parameters import ParameterSet, identical_columns, parameterise
 from ._eigensolvers import Direct
 from ._engine import Settings, run
 from ._residuals import Problem, auto_eigenvalue_weights
@@ -33,12 +34,30 @@ def _active_mask(test: ModalData, options) -> np.ndarray:
     ids = np.arange(1, len(test.frequencies_hz) + 1)
     active = np.ones(len(ids), bool) if options.active_modes is None else np.isin(ids, options.active_modes)
     active &= ~np.isin(ids, options.passive_modes)
-    unknown = sorted((set(options.active_modes or ()) | set(options.passive_modes)) - set(ids.tolist()))
-    if unknown:
-        raise ValueError(f"active/passive modes {unknown} are not test mode numbers 1..{len(ids)}")
+    for key in ("active_modes", "passive_modes"):
+        unknown = sorted(set(getattr(options, key) or ()) - set(ids.tolist()))
+        if unknown:
+            raise ValueError(f"options.{key}: {unknown} are not test mode numbers 1..{len(ids)}")
     if not active.any():
-        raise ValueError("no active test modes")
+        raise ValueError("no active test modes: options.passive_modes holds every test mode")
     return active
+
+
+def underdetermined(problem: Problem, options) -> str | None:
+    """Why the fit is under-determined, or None: more parameters than data rows (active
+    test modes × (1 eigenvalue row + one eigenvector row per sensor), as ``residual``
+    chooses). Then JᵀJ is singular: Gauss–Newton has no step without regularisation;
+    Levenberg–Marquardt (or μ > 0) picks one of the many minima, and "converged" says
+    nothing about the parameters."""
+    n_p = len(problem.parameterisation.parameters)
+    active, n_s = int(np.sum(np.asarray(problem.active))), int(problem.C.shape[0])
+    per_mode = int(problem.use_lam) + n_s * int(problem.use_phi)
+    n_rows = active * per_mode
+    if n_p <= n_rows:
+        return None
+    many = lambda n, what: f"{n} {what}" + ("" if n == 1 else "s")  # noqa: E731
+    return (f"{many(n_p, 'parameter')} but {many(n_rows, 'residual row')} ({many(active, 'active test mode')} × "
+            f"{many(per_mode, 'row')}, residual = {options.residual!r}): the fit is under-determined")
 
 
 def build_problem(model: Model, test: ModalData, parameters: ParameterSet,
@@ -99,10 +118,28 @@ def update(model: Model, test: ModalData, parameters: ParameterSet, *,
     **Arguments:** the nominal model, the measured modes (sensors labelled by grid and
     direction), the parameters and options; ``progress`` is called after every
     accepted iteration. **Returns:** an :class:`UpdateResult`.
+
+    Two parameters on the same targets (:func:`identical_columns`) or more parameters
+    than residual rows (:func:`underdetermined`), where JᵀJ is singular: a ``ValueError``
+    before the loop with Gauss–Newton and no regularisation (it has no step), else
+    a ``UserWarning``, kept in the result's ``warnings``.
     """
     start = time.perf_counter()
     problem = build_problem(model, test, parameters)
     settings = Settings.from_options(parameters.options)
+    notes = []
+    plain_gauss_newton = settings.gauss_newton and parameters.options.regularisation == 0
+    for why, remedy in ((identical_columns(model, problem.parameterisation.parameters), "keep one of each pair"),
+                        (underdetermined(problem, parameters.options), "use fewer parameters or more test modes")):
+        if why is None:
+            continue
+        if plain_gauss_newton:  # JᵀJ singular: no step (a NaN model and a traceback, before)
+            raise ValueError(f"{why}: Gauss–Newton has no unique step; {remedy}, or set options.regularisation "
+                             "> 0 or solver = \"levenberg-marquardt\"")
+        why += (f": α is one of many minimisers (the regularisation or the damping picks it) and 'converged' "
+                f"does not mean identified; {remedy}")
+        warnings.warn(why, UserWarning, stacklevel=2)
+        notes.append(why)
     theta0 = jnp.zeros(len(problem.parameterisation.parameters))
 
     def report(k, alpha, cost, dev, mac):
@@ -129,4 +166,5 @@ def update(model: Model, test: ModalData, parameters: ParameterSet, *,
         sensor_modes={key: (np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model))
                       for key, ev in (("before", state.start), ("after", state.evaluation))},
         parameterisation=problem.parameterisation,
+        warnings=notes,
     )

@@ -159,10 +159,7 @@ class Study:
         if "parameter" in data:
             parameters = ParameterSet.from_dict(data, where)
         else:
-            try:
-                parameters = tree_parameters(Options(**data["options"]) if "options" in data else None)
-            except TypeError as err:
-                raise ValueError(f"{where}: [options] {err}") from None
+            parameters = tree_parameters(Options.from_dict(data["options"], where) if "options" in data else None)
         try:
             return cls(model=model, sensors=sensors, error_pids=tuple(int(p) for p in pids),
                        error_alpha=float(alpha), parameters=parameters,
