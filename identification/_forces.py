@@ -73,7 +73,7 @@ def _mass_factor(name: str, masses, c: int) -> np.ndarray:
     m = _real_array(name, masses)
     if m.shape == (c,):
         if np.any(m <= 0):
-            raise ValueError(f"{name} must be positive")
+            raise ValueError(f"{name} must be positive, got {m.tolist()} (an exciter at a DoF without mass?)")
         return np.diag(np.sqrt(m))
     if m.shape != (c, c):
         raise ValueError(f"{name} must have shape ({c},) or ({c}, {c}), got {m.shape}")

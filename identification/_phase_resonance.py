@@ -46,7 +46,17 @@ from jaxtyping import Float, Int
 from scipy.optimize import brentq
 
 from ._forces import _gram_eig, force_asher, force_hunt, force_lewis_wrisley, force_thesis
-from ._sine import _count, _indices, _real_array, _receptance, _system, damping_matrix, mode_indicator, sine_response
+from ._sine import (
+    _count,
+    _indices,
+    _real_array,
+    _receptance,
+    _square,
+    _system,
+    damping_matrix,
+    mode_indicator,
+    sine_response,
+)
 
 # the appropriation study, and the names tests and docs/thesis.md import from here (before
 # the split into _sine and _forces they were defined here)
@@ -57,6 +67,7 @@ __all__ = ["METHODS", "REDUCED_MASS", "Appropriation", "appropriate", "appropria
 METHODS = ("thesis", "lewis_wrisley", "asher", "hunt")
 REDUCED_MASS = ("diagonal", "guyan")
 _ASHER_GRID = 81  # frequency samples per mode in the search for det Re(H_ee) = 0
+_SYMMETRY_RTOL = 1e-10  # |A − Aᵀ| up to this × max|A| is assembly round-off: A is symmetrised
 
 
 # --------------------------------------------------------------------------- model level
@@ -83,8 +94,52 @@ class Appropriation(eqx.Module):
         return self.force is not None
 
 
+def _symmetrised(name: str, a: np.ndarray) -> np.ndarray:
+    """``(A + Aᵀ)/2``, or ``ValueError`` naming the worst entry when A is not symmetric to
+    within round-off (``_SYMMETRY_RTOL`` × max|A|: a relative test on each entry fails on
+    entries that should be 0)."""
+    gap = np.abs(a - a.T)
+    worst = np.unravel_index(np.argmax(gap), gap.shape)
+    if gap[worst] > _SYMMETRY_RTOL * np.max(np.abs(a)):
+        i, j = (int(x) for x in worst)
+        raise ValueError(f"{name} must be symmetric: {name}[{i}, {j}] = {a[i, j]:.6g} but {name}[{j}, {i}] = "
+                         f"{a[j, i]:.6g} (beyond round-off, {_SYMMETRY_RTOL:g} × max|{name}|)")
+    return 0.5 * (a + a.T)
+
+
+def _symmetric_system(K, M, damping):
+    """K, M, D as :func:`_system`, each symmetrised when its asymmetry is round-off."""
+    K = _symmetrised("K", _square("K", K))
+    M = _symmetrised("M", _square("M", M, K.shape[0]))
+    if np.ndim(damping) == 2:
+        damping = _symmetrised("damping matrix D", _square("damping matrix D", damping, K.shape[0]))
+    return _system(K, M, damping)
+
+
 def _modes(K, M, n_modes: int | None):
-    lam, phi = sl.eigh(K, M)  # eq. 3.14 (eq. 3.53 at resonance), mass-normalised
+    """Undamped modes, mass-normalised (eq. 3.14; eq. 3.53 at resonance). Massless DoFs
+    (zero rows of M: the rotations of a lumped-mass model) are condensed statically,
+    ``K* = K_aa − K_ab K_bb⁻¹ K_ba``, ``φ_b = −K_bb⁻¹ K_ba φ_a``, as :func:`jaxfem.eigh`
+    does; there are as many modes as DoFs with mass."""
+    b = np.flatnonzero(~np.any(M, axis=1))
+    a = np.setdiff1d(np.arange(K.shape[0]), b)
+    if not len(a):
+        raise ValueError("M is zero: the model has no mass")
+    x = np.zeros((len(b), len(a)))
+    if len(b):
+        try:
+            x = np.linalg.solve(K[np.ix_(b, b)], K[np.ix_(b, a)])
+        except np.linalg.LinAlgError:
+            raise ValueError(f"the stiffness of the {len(b)} massless DoFs (zero rows of M) is singular: a mechanism "
+                             "(e.g. a rotation no element resists)") from None
+    k_star = K[np.ix_(a, a)] - K[np.ix_(a, b)] @ x
+    try:
+        lam, phi_a = sl.eigh(0.5 * (k_star + k_star.T), M[np.ix_(a, a)])
+    except np.linalg.LinAlgError:
+        raise ValueError("M must be positive definite on the DoFs with mass (its non-zero rows); it is singular or "
+                         "indefinite there") from None
+    phi = np.zeros((K.shape[0], len(a)))
+    phi[a], phi[b] = phi_a, -x @ phi_a
     if np.any(lam <= 0):
         raise ValueError("K must be positive definite (rigid-body modes cannot be appropriated)")
     m = len(lam) if n_modes is None else _count("n_modes", n_modes)
@@ -210,7 +265,7 @@ def _prepare(K, M, damping, exciters_or_candidates, name, method, reduced_mass, 
     _check_method(method, reduced_mass)
     if not asher_band > 0:
         raise ValueError(f"asher_band must be positive, got {asher_band}")
-    K, M, D = _system(K, M, damping)
+    K, M, D = _symmetric_system(K, M, damping)
     if not np.any(D):
         raise ValueError("force appropriation needs a damped model (D = 0: the response is singular at resonance)")
     n = K.shape[0]
@@ -293,9 +348,10 @@ def exciter_search(
 
 
 def _ranked(K, M, damping, candidates, name, n_exciters, method, n_modes, frequencies_hz, sensors, reduced_mass,
-            asher_band) -> list[list[Appropriation]]:
+            asher_band, labels=None) -> list[list[Appropriation]]:
     """Every subset of ``n_exciters`` candidates appropriated for each mode, best MIF first
-    (one subset when ``n_exciters`` is the number of candidates: :func:`appropriate`)."""
+    (one subset when ``n_exciters`` is the number of candidates: :func:`appropriate`);
+    ``labels`` name the DoFs in messages (default: 0-based indices)."""
     K, M, D, cand, sens, lam, phi, omega = _prepare(
         K, M, damping, candidates, name, method, reduced_mass, n_modes, frequencies_hz, sensors, asher_band
     )
@@ -304,6 +360,11 @@ def _ranked(K, M, damping, candidates, name, n_exciters, method, n_modes, freque
         raise ValueError(f"n_exciters must be in 1..{len(cand)} (the number of candidates), got {n_exciters}")
     solver = _Solver(K, M, D, cand)
     full_mass = _reduced_mass(K, M, cand, "diagonal") if reduced_mass == "diagonal" else None
+    if full_mass is not None and method in ("lewis_wrisley", "hunt") and np.any(full_mass <= 0):
+        named = [f"{labels[c]}" if labels is not None else f"DoF {c} (0-based)" for c in cand[full_mass <= 0]]
+        raise ValueError(f"{name} {', '.join(named)} have no mass (M_ii = 0: a rotation of a lumped-mass model?), "
+                         f"and the {method} method weights the force by the mass at each exciter: choose DoFs "
+                         "with mass, the thesis or asher method, or reduced_mass='guyan'")
     table = []
     for r in range(len(lam)):
         solver.clear()  # keep one mode's frequencies only
@@ -348,17 +409,15 @@ def appropriation_report(
     """
     if _count("top", top) < 1:
         raise ValueError(f"top must be a positive integer, got {top!r}")
-    K, M, D = _system(K, M, damping)
+    K, M, D = _symmetric_system(K, M, damping)
     n = K.shape[0]
     if labels is None:
         labels = [str(i + 1) for i in range(n)]
     elif len(labels) != n:
         raise ValueError(f"labels must name all {n} DoFs of K, got {len(labels)}")
     labels = [str(x) for x in labels]
-    ranked = exciter_search(
-        K, M, D, candidates, n_exciters, method=method, n_modes=n_modes, frequencies_hz=frequencies_hz,
-        sensors=sensors, reduced_mass=reduced_mass,
-    )
+    ranked = _ranked(K, M, D, candidates, "candidates", n_exciters, method, n_modes, frequencies_hz, sensors,
+                     reduced_mass, 1.0, labels)
     cand = _indices("candidates", candidates, n)
     sens = np.arange(n) if sensors is None else _indices("sensors", sensors, n)
     lam, _ = _modes(K, M, n_modes)

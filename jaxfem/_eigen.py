@@ -32,7 +32,8 @@ cluster come from the degenerate-subspace eigenproblem of
 member the mean of its eigenvalues — the exact derivative of the cluster mean, linear
 in the tangent and so valid in reverse mode (``jax.grad``); ``degenerate="split"``
 returns the sorted eigenvalues of D — the one-sided directional derivatives of the
-sorted eigenvalues, valid in forward mode only (``jax.jvp``, ``jax.jacfwd``).
+sorted eigenvalues, valid in forward mode only (``jax.jvp``, ``jax.jacfwd``); under
+``jax.grad`` it raises ``NotImplementedError`` pointing to ``"mean"``.
 """
 
 from __future__ import annotations
@@ -42,9 +43,11 @@ from typing import Literal, NamedTuple
 
 import equinox as eqx
 import jax
+import jax.extend
 import jax.numpy as jnp
 import jax.scipy.linalg as jsl
 import numpy as np
+from jax.interpreters import ad, batching, mlir
 from jaxtyping import Array, Float
 
 from ._eager import compiled_when_eager
@@ -257,7 +260,7 @@ def _eigh_jvp(primals, tangents, *, structure, n_modes, degenerate, rtol):
     else:
         dlam = jax.lax.cond(
             jnp.any(same_e.sum(axis=1) > 1),
-            lambda: _split_clusters(d, ce),
+            lambda: _forward_only_p.bind(_split_clusters(d, ce)),
             lambda: jnp.diagonal(d),
         )
     dlam = dlam[:m]
@@ -275,6 +278,30 @@ def _eigh_jvp(primals, tangents, *, structure, n_modes, degenerate, rtol):
     if len(e.b):
         dphi = dphi.at[e.b].add(-jsl.cho_solve((e.lb, True), g[e.b, :m]))
     return (lam[:m], pe[:, :m]), (dlam, dphi)
+
+
+# degenerate="split" returns eigenvalues of the tangent matrix D: not linear in the tangent,
+# so it has no reverse mode. jax.grad transposes the JVP from its outputs back, and this
+# identity, applied to those tangents, is reached before the eigenvalue solve whose
+# transpose JAX lacks: it says what to use instead of "Transpose rule for 'eigh' not
+# implemented".
+SPLIT_REVERSE_MODE = (
+    "eigh(degenerate='split') gives one-sided directional derivatives of repeated eigenvalues, which "
+    "exist in forward mode only (jax.jvp, jax.jacfwd, jax.linearize without transposing); for jax.grad, "
+    "jax.vjp or jax.jacrev use degenerate='mean' (the default: the exact derivative of each cluster's mean)"
+)
+
+
+def _no_transpose(cotangent, x):
+    raise NotImplementedError(SPLIT_REVERSE_MODE)
+
+
+_forward_only_p = jax.extend.core.Primitive("jaxfem_split_eigenvalue_tangent")
+_forward_only_p.def_impl(lambda x: x)
+_forward_only_p.def_abstract_eval(lambda x: x)
+mlir.register_lowering(_forward_only_p, lambda ctx, x: [x])
+batching.defvectorized(_forward_only_p)
+ad.deflinear2(_forward_only_p, _no_transpose)
 
 
 def _split_clusters(d: Array, cluster: Array) -> Array:
@@ -317,6 +344,20 @@ def nelson(
     return dlam, v + c * phi
 
 
+@jax.custom_jvp
 def frequencies_hz(lam: Float[Array, " m"]) -> Float[Array, " m"]:
-    """Natural frequencies f = √λ / 2π in Hz; round-off negatives (rigid-body modes) give 0."""
+    """Natural frequencies f = √λ / 2π in Hz; round-off negatives (rigid-body modes) give 0.
+
+    Derivative: df/dλ = 1/(4π√λ) = 1/(8π² f) for λ > 0 and 0 for λ ≤ 0 (a rigid-body
+    mode's frequency stays at 0), so ``jax.grad`` through rigid-body modes is finite
+    instead of the NaN of √λ at 0.
+    """
     return jnp.sqrt(jnp.maximum(lam, 0.0)) / (2 * jnp.pi)
+
+
+@frequencies_hz.defjvp
+def _frequencies_hz_jvp(primals, tangents):
+    (lam,), (dlam,) = primals, tangents
+    f = frequencies_hz(lam)
+    positive = lam > 0
+    return f, jnp.where(positive, dlam / (8 * jnp.pi**2 * jnp.where(positive, f, 1.0)), 0.0)

@@ -1,6 +1,7 @@
 """The command line: tables, JSON and errors."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 from typer.testing import CliRunner
@@ -38,5 +39,20 @@ def test_malformed_model_names_the_field(tmp_path):
     bad = tmp_path / "bad.bdf"
     bad.write_text("GRID,1,,0.,0.,abc\n")
     result = runner.invoke(app, ["modes", str(bad)])
-    assert result.exit_code != 0
-    assert "bad.bdf:1" in str(result.exception) and "GRID" in str(result.exception)
+    assert result.exit_code == 2
+    assert "bad.bdf:1: GRID 1 field 6 (X3)" in result.output
+    assert "Traceback" not in result.output
+
+
+def test_unsupported_structural_cards_stop_unless_allowed(tmp_path):
+    """A CHEXA the reader cannot build changes the structure: exit 2 naming the card and the
+    option; with --allow-unsupported the model is built without it, with a warning."""
+    text = Path("tests/data/frame_free.bdf").read_text().replace("ENDDATA", "")
+    deck = tmp_path / "solid.bdf"
+    deck.write_text(text + "CHEXA,900,1,1,2,3,4,5,6,\n,7,8\nENDDATA\n")
+    result = runner.invoke(app, ["modes", str(deck), "-n", "3"])
+    assert result.exit_code == 2
+    assert "CHEXA" in result.output and "--allow-unsupported builds it without them" in result.output
+    result = runner.invoke(app, ["modes", str(deck), "-n", "3", "--allow-unsupported"])
+    assert result.exit_code == 0, result.output
+    assert "CHEXA" in result.output  # the warning names what was left out

@@ -8,7 +8,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from ._common import ModelArg, fail, load_model, write_json
+from ._common import AllowUnsupportedOpt, ModelArg, fail, load_model, write_json
 
 
 def _dof_indices(model, spec: str, option: str) -> tuple[list[int], list[str]]:
@@ -16,11 +16,13 @@ def _dof_indices(model, spec: str, option: str) -> tuple[list[int], list[str]]:
     its own (not constrained, not an RBE2-dependent combination)."""
     from identification import Sensors, observation_matrix
 
+    pairs = [item.split(":") for item in spec.split(",") if item.strip()]
+    if not pairs or any(len(p) != 2 for p in pairs):
+        fail(f"{option} {spec!r}: expected GRID:COMPONENT,..., components 1–6 (e.g. 101:3,205:3)")
     try:
-        pairs = [item.split(":") for item in spec.split(",") if item.strip()]
         nodes, comps = [int(p[0]) for p in pairs], [int(p[1]) for p in pairs]
         C, _ = observation_matrix(model, Sensors.from_components(nodes, comps))
-    except (ValueError, IndexError) as err:
+    except ValueError as err:
         fail(f"{option} {spec}: {err} (expected GRID:COMPONENT,..., components 1–6)")
     labels = [f"{n}:{c}" for n, c in zip(nodes, comps)]
     out = []
@@ -45,13 +47,23 @@ def appropriate(
     kappa: Annotated[float, typer.Option("--kappa", help="stiffness-proportional damping D = μM + κK, κ in s")] = 1e-3,
     mu: Annotated[float, typer.Option("--mu", help="mass-proportional damping, 1/s")] = 0.0,
     top: Annotated[int, typer.Option("--top", help="exciter sets listed per mode")] = 5,
+    allow_unsupported: AllowUnsupportedOpt = False,
 ) -> None:
     """Phase-resonance planning: the predicted MIF (eq. 3.54) of every set of ``--exciters``
     positions among the candidates, with the appropriated forces (thesis §3.4, Table 5.11)."""
     import jaxfem
     from identification import appropriation_report
 
-    model = load_model(model_path)
+    for flag, value, ok, what in (
+        ("--exciters", n_exciters, n_exciters >= 1, "at least 1"),
+        ("--modes", n_modes, n_modes >= 1, "at least 1"),
+        ("--top", top, top >= 1, "at least 1"),
+        ("--kappa", kappa, kappa >= 0 and np.isfinite(kappa), "finite and non-negative (s)"),
+        ("--mu", mu, mu >= 0 and np.isfinite(mu), "finite and non-negative (1/s)"),
+    ):
+        if not ok:
+            fail(f"{flag} {value:g}: must be {what}")
+    model = load_model(model_path, allow_unsupported=allow_unsupported)
     cand, labels = _dof_indices(model, candidates, "--candidates")
     sens = _dof_indices(model, sensors, "--sensors")[0] if sensors else None
     K, M = (np.asarray(a.todense()) for a in jaxfem.assemble(model))

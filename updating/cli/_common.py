@@ -58,18 +58,25 @@ def check_plots(plots: Path | None) -> None:
         fail(f"--plots {plots} exists and is not a directory")
 
 
-def load_model(path: Path):
+def load_model(path: Path, content: dict | None = None, allow_unsupported: bool = False):
+    """The model of a bulk-data file; exit 2 naming the file, line, card and field when it
+    cannot be read or built, naming ``--allow-unsupported`` when it holds unsupported
+    structural cards; the reader's and builder's warnings on stderr. ``content``: a dict
+    to receive the parsed bulk data (``bulk``); ``allow_unsupported``: build without those
+    cards (:func:`jaxfem.build_model`)."""
     import jaxfem
-    from jaxfem.io import read_bdf
+    from jaxfem.io import UnsupportedCardsError, read_bdf
 
     with echoed_warnings():
         try:
             bulk = read_bdf(path)
-            model = jaxfem.build_model(bulk)
+            model = jaxfem.build_model(bulk, allow_unsupported=allow_unsupported)
+        except UnsupportedCardsError as err:
+            fail(f"cannot read model {path}: {err.problem}; --allow-unsupported builds it without them")
         except (ValueError, OSError) as err:
             fail(f"cannot read model {path}: {err}")
-    if bulk.unknown:
-        typer.echo(f"warning: unsupported cards ignored: {', '.join(sorted(bulk.unknown))}", err=True)
+    if content is not None:
+        content["bulk"] = bulk
     return model
 
 
@@ -133,6 +140,9 @@ MapOpt = Annotated[str, typer.Option(
 MaxDistanceOpt = Annotated[float | None, typer.Option(
     "--max-distance", metavar="M", help="largest accepted test-node-to-model distance, m (default 5 % of the "
                                         "model's size)")]
+AllowUnsupportedOpt = Annotated[bool, typer.Option(
+    "--allow-unsupported", help="build the model without the structural cards jaxfem does not support (elements, "
+                                "properties, materials it cannot read): the structure then lacks them")]
 AlignOpt = Annotated[bool, typer.Option(
     "--align", help="move the test geometry onto the model first (rigid least-squares fit on matched points)")]
 
@@ -176,7 +186,7 @@ def check_solver(solver: str | None) -> str:
 
 
 def load_inputs(model_path: Path, test_path: Path, params_path: Path | None = None, solver: str | None = None,
-                geometry: Geometry = Geometry()):
+                geometry: Geometry = Geometry(), allow_unsupported: bool = False):
     """Model (with the test nodes mapped onto it, :func:`map_geometry`), real test modes,
     observation matrix, the parameter set (None without a file; ``solver``, from
     ``--solver``, overrides its eigensolver) and the :class:`identification.GeometryMap`,
@@ -196,7 +206,7 @@ def load_inputs(model_path: Path, test_path: Path, params_path: Path | None = No
             fail(f"bad parameter file: {err}")
         if solver is not None:
             params = replace(params, options=replace(params.options, eigensolver=solver))
-    model = load_model(model_path)
+    model = load_model(model_path, allow_unsupported=allow_unsupported)
     content: dict = {}
     test = load_test(test_path, geometry.test_units, content)
     model, test, gmap = map_geometry(model, test, content["nodes"], content["units"], test_path, geometry)

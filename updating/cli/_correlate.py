@@ -22,11 +22,27 @@ from ._common import (
     check_solver,
     write_json,
     AlignOpt,
+    AllowUnsupportedOpt,
     Geometry,
     MapOpt,
     MaxDistanceOpt,
     TestUnitsOpt,
 )
+
+
+def check_thresholds(n: int | None, min_mac: float, max_freq_dev: float, max_automac: float | None = None) -> None:
+    """Exit 2 naming the option when ``-n``, ``--min-mac``, ``--max-freq-dev`` or
+    ``--max-automac`` is out of range, before any model is read or solved."""
+    checks = [
+        ("-n", n, n is None or n >= 1, "a positive number of model modes"),
+        ("--min-mac", min_mac, 0 < min_mac <= 1, "in (0, 1]"),
+        ("--max-freq-dev", max_freq_dev, max_freq_dev >= 0, "a non-negative fraction (0.3 = 30 %)"),
+    ]
+    if max_automac is not None:
+        checks.append(("--max-automac", max_automac, 0 < max_automac <= 1, "in (0, 1]"))
+    for flag, value, ok, what in checks:
+        if not ok:
+            fail(f"{flag} {value:g}: must be {what}")
 
 
 def correlate(
@@ -46,6 +62,7 @@ def correlate(
     max_distance: MaxDistanceOpt = None,
     test_units: TestUnitsOpt = None,
     align: AlignOpt = False,
+    allow_unsupported: AllowUnsupportedOpt = False,
     max_automac: Annotated[float, typer.Option(
         "--max-automac", help="warn of spatial aliasing when two test modes have an AutoMAC above this")] = 0.9,
 ) -> None:
@@ -57,11 +74,16 @@ def correlate(
     from .._solve import n_model_modes
 
     check_plots(plots)
+    check_thresholds(n, min_mac, max_freq_dev, max_automac)
     model, test, C, _, gmap = load_inputs(model_path, test_path,
-                                          geometry=Geometry(map_method, max_distance, test_units, align))
+                                          geometry=Geometry(map_method, max_distance, test_units, align),
+                                          allow_unsupported=allow_unsupported)
     ne = test.n_modes
     n_model = n_model_modes(model, ne, n)
-    lam, phi = jaxfem.modes(model, n_model, solver=check_solver(solver))
+    try:
+        lam, phi = jaxfem.modes(model, n_model, solver=check_solver(solver))
+    except ValueError as err:
+        fail(f"{model_path}: {err}")
     f_a, phi_a = np.asarray(jaxfem.frequencies_hz(lam)), C @ np.asarray(phi)
     f_e, phi_e = np.asarray(test.frequencies_hz), np.asarray(test.shapes)
     try:
@@ -104,11 +126,14 @@ def correlate(
     if plots is not None:
         from .._plots import plot_freq_dev, plot_mac
 
-        written = [
-            plot_mac(np.asarray(corr.mac(phi_a, phi_e)).T, mode_labels(f_e), mode_labels(f_a), plots / "mac.png",
-                     f"MAC: {test_path.name} vs {model_path.name}"),
-            plot_freq_dev(pairing.per_test()[0], None, mode_labels(f_e), plots / "freq_dev.png"),
-        ]
+        try:
+            written = [
+                plot_mac(np.asarray(corr.mac(phi_a, phi_e)).T, mode_labels(f_e), mode_labels(f_a),
+                         plots / "mac.png", f"MAC: {test_path.name} vs {model_path.name}"),
+                plot_freq_dev(pairing.per_test()[0], None, mode_labels(f_e), plots / "freq_dev.png"),
+            ]
+        except OSError as err:
+            fail(f"cannot write plots to {plots}: {err}")
         typer.echo("wrote " + ", ".join(str(w) for w in written))
     if report is not None:
         from .._shape_view import correlation_view, measured_geometry

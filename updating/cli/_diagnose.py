@@ -8,7 +8,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from ._common import (AlignOpt, Geometry, MapOpt, MaxDistanceOpt, ModelArg, SolverOpt, TestArg, TestUnitsOpt,
+from ._common import (AlignOpt, AllowUnsupportedOpt, Geometry, MapOpt, MaxDistanceOpt, ModelArg, SolverOpt, TestArg, TestUnitsOpt,
                       check_plots, check_solver, fail, frf_prediction, load_inputs, load_test, mode_labels, write_json)
 
 
@@ -185,6 +185,8 @@ def diagnosis(model, test, params, *, model_name: str, test_name: str, json_out:
         if not options.ray:
             raise
         fail(f"--ray {options.ray}: {err}")
+    except ValueError as err:
+        fail(f"cannot diagnose {model_name} against {test_name}: {err}")
     rep = dict(diag.to_json(), model=model_name, test=test_name)
     if reference is not None:
         rep["reference"] = reference
@@ -199,8 +201,11 @@ def diagnosis(model, test, params, *, model_name: str, test_name: str, json_out:
         def progress(it) -> None:
             typer.echo(f"[update] iteration {it.iteration:3d}  cost {it.cost:.4e}", err=True)
 
-        confirmation = add_effect(model, test, diag.best, params, progress=progress,
-                                  noise_freq=options.noise_freq)
+        try:
+            confirmation = add_effect(model, test, diag.best, params, progress=progress,
+                                      noise_freq=options.noise_freq)
+        except ValueError as err:
+            fail(f"cannot add {diag.best.kind} at {diag.best.where()} to {model_name}: {err}")
         rep["after"] = confirmation.to_json()
         _print_confirmation(rep["after"])
     if frf_path is not None and confirmation is not None:
@@ -208,10 +213,14 @@ def diagnosis(model, test, params, *, model_name: str, test_name: str, json_out:
     if json_out is not None:
         write_json(json_out, rep)
     if report is not None:
-        report.mkdir(parents=True, exist_ok=True)
-        figures = _figures(rep, diag, confirmation, model, test, report)
-        views = _shape_views(diag, confirmation, test, gmap, params, options, report, test_path)
-        typer.echo(f"wrote {write_report(json_safe(rep), figures, report / 'report.html', links=views)}")
+        try:
+            report.mkdir(parents=True, exist_ok=True)
+            figures = _figures(rep, diag, confirmation, model, test, report)
+            views = _shape_views(diag, confirmation, test, gmap, params, options, report, test_path)
+            written = write_report(json_safe(rep), figures, report / "report.html", links=views)
+        except OSError as err:
+            fail(f"cannot write the report to {report}: {err}")
+        typer.echo(f"wrote {written}")
     return rep
 
 
@@ -234,6 +243,7 @@ def diagnose(
     max_distance: MaxDistanceOpt = None,
     test_units: TestUnitsOpt = None,
     align: AlignOpt = False,
+    allow_unsupported: AllowUnsupportedOpt = False,
     reference_path: Annotated[Path | None, typer.Option(
         "--reference", metavar="HEALTHY.uff", exists=True, dir_okay=False,
         help="modes of a reference state (e.g. before the damage) at the same sensors: diagnose the change "
@@ -249,13 +259,14 @@ def diagnose(
     from .._diagnose import DiagnoseOptions
 
     check_plots(report)
+    if not (noise_freq > 0 and noise_shape > 0 and noise_damping > 0):
+        fail("--noise-freq, --noise-shape and --noise-damping must be positive (percent)")
     model, test, _, params, gmap = load_inputs(model_path, test_path, params_path, solver,
-                                               Geometry(map_method, max_distance, test_units, align))
+                                               Geometry(map_method, max_distance, test_units, align),
+                                               allow_unsupported)
     change = None
     if reference_path is not None:
         test, change = _relative(model, test, reference_path, check_solver(solver) or "auto", gmap)
-    if not (noise_freq > 0 and noise_shape > 0 and noise_damping > 0):
-        fail("--noise-freq, --noise-shape and --noise-damping must be positive (percent)")
     options = DiagnoseOptions(noise_freq=noise_freq / 100, noise_shape=noise_shape / 100,
                               noise_damping=noise_damping / 100, eigensolver=check_solver(solver), ray=ray)
     diagnosis(model, test, params, model_name=model_path.name, test_name=test_path.name, json_out=json_out,

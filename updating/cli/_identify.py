@@ -39,7 +39,6 @@ def identify(
     hammer point. When no mode is found the diagram (PNG) and the JSON are written all the
     same, for a look at which options to change."""
     from identification import identify as run_identify
-    from identification import write_uff
     from identification._fitting import IdentificationError
 
     check_plots(plots)
@@ -84,11 +83,26 @@ def identify(
     if recip["dofs_from_inputs"]:
         typer.echo(f"shapes at the inputs {', '.join(recip['dofs_from_inputs'])} by reciprocity (H_ij = H_ji)")
     if modes_out is not None:
-        write_uff(modes_out, modes=modes)
-        typer.echo(f"wrote {modes_out}")
+        _write_modes(modes_out, modes)
     if plots is not None:
         _plot(report, plots / "stabilisation.png")
     write_json(json_out, report)
+
+
+def _write_modes(path: Path, modes) -> None:
+    """``--uff``: the modes as UFF 55; exit 2 naming the file when it cannot be written
+    (pyuff's own error on a bad path is a bare ``Exception``, so the file is opened here
+    first)."""
+    from identification import write_uff
+
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with open(path, "w"):
+            pass
+        write_uff(path, modes=modes)
+    except (OSError, ValueError) as err:
+        fail(f"cannot write {path}: {err}")
+    typer.echo(f"wrote {path}")
 
 
 def _once(path: Path, message: str) -> str:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import zipfile
 from pathlib import Path
 from typing import Annotated
 
@@ -133,21 +134,29 @@ def montecarlo(
         typer.echo(f"finished chunks are written to {out} (a rerun resumes from there)")
     typer.echo("error-free reference updates (compiled once per number of modes) ...", err=True)
 
-    if ray is None:
-        result = run_study(study, out=out, progress=_progress, runner=runner)
-    else:
-        from .._ray import montecarlo_ray
+    try:
+        if ray is None:
+            result = run_study(study, out=out, progress=_progress, runner=runner)
+        else:
+            from .._ray import montecarlo_ray
 
-        try:
-            result = montecarlo_ray(study, address=None if ray == "local" else ray, out=out,
-                                    progress=_progress, runner=runner)
-        except (ImportError, ConnectionError, RuntimeError) as err:
-            fail(f"--ray {ray}: {err}")
+            try:
+                result = montecarlo_ray(study, address=None if ray == "local" else ray, out=out,
+                                        progress=_progress, runner=runner)
+            except (ImportError, ConnectionError, RuntimeError) as err:
+                fail(f"--ray {ray}: {err}")
+    except (OSError, zipfile.BadZipFile) as err:  # a chunk that cannot be written, or a truncated one
+        fail(f"chunks in {out}: {err} (delete a damaged chunk file to compute it again)")
+    except ValueError as err:
+        fail(f"{config}: {err}")
     write_json(json_out, dict(result.to_json(), config=str(config), devices=len(chosen)))
     if plots is not None:
         from .._montecarlo_plots import plot_montecarlo
 
-        written = plot_montecarlo(result, plots, name=config.name)
+        try:
+            written = plot_montecarlo(result, plots, name=config.name)
+        except OSError as err:
+            fail(f"cannot write plots to {plots}: {err}")
         typer.echo("wrote " + ", ".join(str(w) for w in written))
     _study_summary(result)
     typer.echo(f"done in {_duration(result.seconds)}")

@@ -15,10 +15,12 @@ from ._common import (
     PlotsOut,
     TestArg,
     check_plots,
+    echoed_warnings,
     fail,
     frf_prediction,
     load_inputs,
     AlignOpt,
+    AllowUnsupportedOpt,
     Geometry,
     MapOpt,
     MaxDistanceOpt,
@@ -134,6 +136,7 @@ def update(
     max_distance: MaxDistanceOpt = None,
     test_units: TestUnitsOpt = None,
     align: AlignOpt = False,
+    allow_unsupported: AllowUnsupportedOpt = False,
 ) -> None:
     """Update model parameters so that the model modes match the test modes.
 
@@ -149,7 +152,8 @@ def update(
 
     check_plots(plots)
     model, test, _, params, gmap = load_inputs(model_path, test_path, params_path, solver,
-                                               Geometry(map_method, max_distance, test_units, align))
+                                               Geometry(map_method, max_distance, test_units, align),
+                                               allow_unsupported)
     last = {}
 
     def progress(it) -> None:
@@ -164,7 +168,8 @@ def update(
             model, confirmation = _add_effects(model, test, params, add_effect, progress)
             res = confirmation.after
         else:
-            res = run_update(model, test, params, progress=progress)
+            with echoed_warnings():
+                res = run_update(model, test, params, progress=progress)
     except ValueError as err:
         fail(f"{params_path}: {err}")
 
@@ -178,4 +183,8 @@ def update(
     _print_pairings(result, res)
     write_json(json_out, result)
     if plots is not None:
-        typer.echo("wrote " + ", ".join(str(w) for w in _plot(res, test, plots)))
+        try:
+            written = _plot(res, test, plots)
+        except OSError as err:
+            fail(f"cannot write plots to {plots}: {err}")
+        typer.echo("wrote " + ", ".join(str(w) for w in written))
