@@ -29,3 +29,15 @@ def test_a_stiff_spring_elsewhere_leaves_the_rotations_of_a_light_cantilever():
     assert f[0] < 1.0
     assert len(strip.dofs.auto_spc) == 0
     assert sorted(map(tuple, both.dofs.auto_spc.tolist())) == [(99, 4), (99, 5), (99, 6)]  # the spring grid's own
+
+
+def test_an_overflow_in_the_elements_is_named_not_solved():
+    """A shell 1e200 m thick overflows its stiffness: refused naming the DoFs, before any
+    eigensolver sees inf or NaN."""
+    import pytest
+
+    from benchmarks.shell_models import plate
+
+    deck = plate(1.0, 0.8, 2, 2, "PSHELL,1,1,1.E200,1,,1\nMAT1,1,70.E9,,0.3,2700.", bc="free")
+    with pytest.raises(ValueError, match=r"the stiffness of \d+ DoF\(s\) is not finite, \(node, component\) \(1, 1\)"):
+        jaxfem.build_model(read_bdf_text(deck))
