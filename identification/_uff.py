@@ -30,6 +30,7 @@ import math
 import os
 import re
 import warnings
+from collections.abc import Callable
 from typing import NamedTuple
 
 import equinox as eqx
@@ -126,23 +127,7 @@ def read_uff(path: str | os.PathLike, *, length_units: str | None = None,
     missing (output, input) pairs, and FRFs of mixed or unknown kinds.
     """
     path = os.fspath(path)
-    if not os.path.isfile(path):
-        raise FileNotFoundError(f"no universal file {path}")
-    with open(path, "rb") as handle:
-        blocks = _blocks(handle.read(), path)
-    uff = pyuff.UFF(path)
-    types = [int(t) for t in uff.get_set_types()]
-    _check_split(uff, types, blocks, path)
-    records = []
-    for i, kind in enumerate(types):
-        where = f"{path}: dataset #{i + 1} (type {kind}, from line {blocks[i].line})"
-        try:
-            record = uff.read_sets(i)
-        except Exception as err:  # pyuff raises bare Exception for any parse failure
-            raise ValueError(f"{path}: dataset #{i + 1} (type {kind}) cannot be parsed (it starts at line "
-                             f"{blocks[i].line}): {err}") from err
-        _check_record(record, where)
-        records.append((i + 1, record))
+    records, blocks = read_records(path)
     by_type: dict[int, list[tuple[int, dict]]] = {}
     for number, record in records:
         by_type.setdefault(int(record["type"]), []).append((number, record))
@@ -200,6 +185,32 @@ _DELIMITER = re.compile(rb"^    -1[ \t]*\r?$", re.MULTILINE)
 # next line as some writers put it.
 _BINARY_CLOSE = re.compile(rb"(?:\r?\n)?(    -1)[ \t]*\r?(?:\n|\Z)")
 _TEXT = re.compile(rb"\S")
+
+
+def read_records(path: str, wanted: Callable[[int], bool] = lambda kind: True) -> tuple[list[tuple[int, dict]], list[_Block]]:
+    """``[(dataset number in file, pyuff record), ...]`` of the datasets whose type is
+    ``wanted``, and every dataset's :class:`_Block`; the file's split checked against its
+    own delimiters (:func:`_blocks`, :func:`_check_split`) and each record checked whole
+    (:func:`_check_record`). Raises ``ValueError`` naming the dataset and its line."""
+    if not os.path.isfile(path):
+        raise FileNotFoundError(f"no universal file {path}")
+    with open(path, "rb") as handle:
+        blocks = _blocks(handle.read(), path)
+    uff = pyuff.UFF(path)
+    types = [int(t) for t in uff.get_set_types()]
+    _check_split(uff, types, blocks, path)
+    records = []
+    for i, kind in enumerate(types):
+        if not wanted(kind):
+            continue
+        try:
+            record = uff.read_sets(i)
+        except Exception as err:  # pyuff raises bare Exception for any parse failure
+            raise ValueError(f"{path}: dataset #{i + 1} (type {kind}) cannot be parsed (it starts at line "
+                             f"{blocks[i].line}): {err}") from err
+        _check_record(record, f"{path}: dataset #{i + 1} (type {kind}, from line {blocks[i].line})")
+        records.append((i + 1, record))
+    return records, blocks
 
 
 def _blocks(data: bytes, path: str) -> list[_Block]:

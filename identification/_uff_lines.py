@@ -5,7 +5,8 @@ from __future__ import annotations
 import os
 
 import numpy as np
-import pyuff
+
+from ._uff import _MAX_ID, read_records
 
 
 def read_trace_lines(path: str | os.PathLike) -> list[tuple[int, int]]:
@@ -18,25 +19,17 @@ def read_trace_lines(path: str | os.PathLike) -> list[tuple[int, int]]:
 
     **Returns:** ``[(a, b), ...]``, empty when the file has no dataset 82.
 
-    Raises ``ValueError`` naming the record for a dataset 82 that cannot be parsed or
-    whose node list is not whole numbers.
+    Raises ``ValueError`` naming the dataset and line when the file is not whole (a -1
+    missing, truncated: :func:`read_records`), a dataset 82 cannot be parsed or its node
+    list is not whole numbers in 0..2³¹−1.
     """
     path = os.fspath(path)
-    if not os.path.isfile(path):
-        raise FileNotFoundError(f"no universal file {path}")
-    uff = pyuff.UFF(path)
     lines: dict[tuple[int, int], None] = {}
-    for i, kind in enumerate(uff.get_set_types()):
-        if int(kind) != 82:
-            continue
-        try:
-            record = uff.read_sets(i)
-        except Exception as err:  # pyuff raises bare Exception for any parse failure
-            raise ValueError(f"{path}: dataset #{i + 1} (type 82) cannot be parsed: {err}") from err
+    for number, record in read_records(path, lambda kind: kind == 82)[0]:
         nodes = np.asarray(record.get("nodes", ()), dtype=np.float64).reshape(-1)
-        if not np.all(np.isfinite(nodes) & (nodes == np.round(nodes))):
-            raise ValueError(f"{path}: dataset #{i + 1} (type 82, trace {record.get('trace_num')}): "
-                             "node ids are not whole numbers")
+        if not np.all(np.isfinite(nodes) & (nodes == np.round(nodes)) & (nodes >= 0) & (nodes <= _MAX_ID)):
+            raise ValueError(f"{path}: dataset #{number} (type 82, trace {record.get('trace_num')}): "
+                             f"node ids are not whole numbers in 0..{_MAX_ID}")
         ids = nodes.astype(np.int64).tolist()
         for a, b in zip(ids[:-1], ids[1:]):
             if a != 0 and b != 0 and a != b:

@@ -8,6 +8,8 @@ per-node constraint map of :class:`jaxfem.DofMap` (SPC removal and RBE2 eliminat
 
 from __future__ import annotations
 
+import warnings
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -203,6 +205,7 @@ def finalize_dofs(model: Model) -> Model:
     no_k = np.abs(dk) <= _ZERO * _grid_scale(dk, dofs.labels[:, 0])
     no_m = np.abs(dm) <= _ZERO * _grid_scale(dm, dofs.labels[:, 0])
     drop = no_k & no_m
+    _warn_free_mass(dofs.labels[no_k & ~no_m])
     keep = np.flatnonzero(~drop)
     new_number = np.full(dofs.n_dof + 1, len(keep), dtype=np.int64)
     new_number[keep] = np.arange(len(keep))
@@ -220,6 +223,15 @@ def finalize_dofs(model: Model) -> Model:
     if len(massless):
         _check_massless_stiffness(K, keep[massless], dofs.labels)
     return eqx.tree_at(lambda m: m.dofs, model, new)
+
+
+def _warn_free_mass(labels: np.ndarray) -> None:
+    """A DoF with mass and no stiffness moves freely: its unit vector is a 0 Hz mode."""
+    if len(labels):
+        where = ", ".join(f"({n}, {c})" for n, c in labels[:8].tolist())
+        warnings.warn(f"{len(labels)} DoF(s) carry mass but no stiffness, (node, component) {where}"
+                      f"{' …' if len(labels) > 8 else ''}: each moves freely, a 0 Hz mode of its own; connect "
+                      "or constrain them (SPC)", UserWarning, stacklevel=4)
 
 
 def _sparse_block(a: ElementMatrix, dofs: np.ndarray) -> scipy.sparse.csc_matrix:

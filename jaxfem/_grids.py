@@ -131,7 +131,9 @@ def _coincident(xa: np.ndarray, xb: np.ndarray) -> bool:
 def _axis(card: Card, xa: np.ndarray, xb: np.ndarray, key: str) -> np.ndarray:
     """Unit vector A→B, or a located error for a zero-length element."""
     if _coincident(xa, xb):
-        raise card.error(key, f"zero length: both ends (offsets included) at {xa.tolist()}")
+        raise card.error(key, f"zero length: the ends (offsets included) are {np.linalg.norm(xb - xa):.3g} apart, "
+                              f"at {xa.tolist()} and {xb.tolist()} (at most {_LENGTH_TOL:g} × their distance from "
+                              "the origin counts as one point)")
     return (xb - xa) / np.linalg.norm(xb - xa)
 
 

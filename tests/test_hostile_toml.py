@@ -323,3 +323,72 @@ def test_schema_property_valid_or_value_error_naming_the_key(tmp_path_factory):
             assert isinstance(pset, ParameterSet) and len(pset.parameters) == 2
 
     check()
+
+
+GOOD_STUDY = {"study": {"model": "tree", "sensors": "tree", "error_pids": [2, 4], "error_alpha": -0.17,
+                        "n_modes": [2, 5], "samples": 3, "seed": 0, "chunk_size": 4, "eigensolver": "subspace",
+                        "lockstep": 1},
+              "errors": {"relative": [0.01, 0.05], "frequency": [0.02]}}
+
+
+@pytest.mark.parametrize("text, message", [
+    ("[study]\nsamples = 2.5", "study.samples: expected an integer ≥ 1, got 2.5"),  # was truncated to 2
+    ("[study]\nerror_pids = 5", "study.error_pids: expected a non-empty array of property ids"),  # was TypeError text
+    ("[study]\nmodel = 5", "study.model: expected a non-empty string, got 5"),  # was an uncaught TypeError
+    ("errors = [1]", "errors: expected a table [errors], got [1]"),  # was an uncaught AttributeError
+    ("[errors]\nrelative = [1.5]", "errors.relative: expected a non-empty array of fractions in [0, 1)"),
+    ("[errors]\nthermal = [0.1]", "errors.thermal: unknown error category; known: relative, absolute, frequency"),
+    ('[study]\nmodelling_error = "a"', "study.modelling_error: expected an integer ≥ 1 and ≤ 3, got 'a'"),
+    ("[study]\nmodelling_error = 1\nerror_pids = [3]", "study.modelling_error: give modelling_error or "
+                                                       "error_pids/error_alpha, not both"),
+    ("[study]\nsampels = 3", "study.sampels: unknown key (did you mean 'samples'?)"),
+    ("[study]\nlockstep = true", "study.lockstep: expected an integer ≥ 1, got True"),
+    ("[options]\nmax_iterations = 2.5", "options.max_iterations: expected an integer ≥ 1"),
+])
+def test_a_monte_carlo_study_file_is_checked_naming_file_and_key(tmp_path, text, message):
+    from updating._study import Study
+
+    path = tmp_path / "study.toml"
+    path.write_text(text + "\n")
+    with pytest.raises(ValueError) as err:
+        Study.from_toml(path)
+    assert str(err.value) == f"{path}: {message}" or str(err.value).startswith(f"{path}: {message}"), str(err.value)
+    result = CliRunner().invoke(app, ["montecarlo", str(path), "--json", str(tmp_path / "mc.json")])
+    assert result.exit_code == 2 and message in result.output and "Traceback" not in result.output, result.output
+
+
+@pytest.mark.skipif(hypothesis is None, reason="needs hypothesis (pip install jaxfem[test])")
+def test_study_schema_property_valid_or_value_error_naming_the_key(tmp_path_factory):
+    """A random TOML value in any key of a valid Monte-Carlo study: a Study or a ValueError
+    naming the file and the key; never another exception."""
+    from updating._study import Study
+
+    folder = tmp_path_factory.mktemp("study")
+    scalars = st.one_of(st.integers(-(2 ** 63), 2 ** 63 - 1), st.integers(-3, 30), st.floats(), st.booleans(),
+                        st.text(st.characters(exclude_categories=("Cs",)), max_size=6),
+                        st.sampled_from(["tree", "sparse", "relative"]))
+    values = st.recursive(scalars, lambda inner: st.one_of(
+        st.lists(inner, max_size=3), st.dictionaries(st.sampled_from(["relative", "samples"]), inner, max_size=2)),
+        max_leaves=6)
+    places = [("study",), ("errors",)] + [(table, k) for table in GOOD_STUDY for k in GOOD_STUDY[table]]
+
+    @hypothesis.settings(max_examples=150, deadline=None, database=None,
+                         suppress_health_check=[hypothesis.HealthCheck.too_slow])
+    @hypothesis.given(place=st.sampled_from(places), value=values)
+    def check(place, value):
+        data = json.loads(json.dumps(GOOD_STUDY))
+        if len(place) == 1:
+            data[place[0]] = value
+        else:
+            data[place[0]][place[1]] = value
+        path = folder / "fuzz.toml"
+        path.write_text("".join(f"{k} = {_toml(v)}\n" for k, v in data.items()))
+        try:
+            study = Study.from_toml(path)
+        except ValueError as err:
+            message = str(err)
+            assert str(path) in message and place[-1] in message, (place, message)
+        else:
+            assert isinstance(study, Study) and study.samples >= 1
+
+    check()

@@ -73,7 +73,7 @@ def test_study_from_toml(tmp_path):
     assert s.cells == [("relative", 0.01), ("relative", 0.05)] and s.n_modes == (2, 10)
     assert len(s.chunks()) == 2 and s.chunks()[0] == (2, 0, 14)
     (tmp_path / "bad.toml").write_text('[errors]\nthermal = [0.1]\n')
-    with pytest.raises(ValueError, match="unknown error categories"):
+    with pytest.raises(ValueError, match="errors.thermal: unknown error category"):
         Study.from_toml(tmp_path / "bad.toml")
     (tmp_path / "both.toml").write_text('[study]\nmodelling_error = 1\nerror_pids = [3]\n')
     with pytest.raises(ValueError, match="not both"):

@@ -66,6 +66,17 @@ def test_read_trace_lines(tmp_path, case):
     assert read_trace_lines(plain) == []
 
 
+def test_read_trace_lines_refuses_a_file_that_is_not_whole(tmp_path, case):
+    """The lines go through the same whole-file check as the modes: a -1 missing between
+    two datasets is named by its line, not merged by pyuff into one dataset."""
+    text = case.uff.read_text().split("\n")
+    first = next(i for i, line in enumerate(text) if i > 0 and line.rstrip() == "    -1")  # closes dataset 1
+    broken = tmp_path / "broken.uff"
+    broken.write_text("\n".join(text[:first] + text[first + 1:]))
+    with pytest.raises(ValueError, match=rf"broken.uff: line {first + 2} .* lies outside any dataset"):
+        read_trace_lines(broken)
+
+
 def test_test_translations_from_skew_and_partial_sensors():
     u1, u2 = np.array([0.3, -0.2, 0.9]), np.array([1.0, 2.0, -0.5])
     d = np.array([[1.0, 1.0, 0.0], [0.0, 1.0, 1.0], [1.0, 0.0, 1.0]]) / np.sqrt(2)  # skew, independent

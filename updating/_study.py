@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 import tomllib
 
-from ._parameters import Options, Parameter, ParameterSet
+from ._parameters import (FieldError, Options, Parameter, ParameterSet, _checked, _choice, _Expected, _finite,
+                          _integer, _integers, _name, _number, _refuse_unknown, _show)
 
 CATEGORIES = ("relative", "absolute", "frequency")
 TABLE_4_7 = {"relative": (0.01, 0.02, 0.05, 0.10, 0.20),
@@ -64,19 +65,19 @@ class Study:
     lockstep: int = 1
 
     def __post_init__(self):
-        bad = [c for c, _ in self.errors if c not in CATEGORIES]
-        if bad:
-            raise ValueError(f"unknown error categories {bad}; known: {list(CATEGORIES)}")
-        if not self.errors or any(not mags for _, mags in self.errors):
-            raise ValueError("every error category needs at least one magnitude")
-        if any(not (0 <= m < 1) for _, mags in self.errors for m in mags):
-            raise ValueError("error magnitudes are fractions in [0, 1), e.g. 0.05 for 5 %")
-        if self.samples < 1 or self.chunk_size < 1 or self.lockstep < 1 or any(n < 1 for n in self.n_modes):
-            raise ValueError("samples, chunk_size, lockstep and n_modes must be positive")
-        if self.eigensolver not in ("subspace", "full", "sparse"):
-            raise ValueError(f"eigensolver {self.eigensolver!r}: subspace | full | sparse")
-        if not self.error_alpha > -1:
-            raise ValueError("the modelling error α must be > −1")
+        """The one check of the TOML file and of Python callers: each value against
+        ``_STUDY_SCHEMA`` (a :class:`FieldError` naming ``study.KEY`` or ``errors.CATEGORY``)."""
+        for key, check in _STUDY_SCHEMA.items():
+            object.__setattr__(self, key, _checked(f"study.{key}", check, getattr(self, key)))
+        if not isinstance(self.errors, (tuple, list)) or not self.errors:
+            raise FieldError("errors", f"expected at least one category of {', '.join(CATEGORIES)}, got "
+                                       f"{_show(self.errors)}")
+        errors = []
+        for category, magnitudes in self.errors:
+            if category not in CATEGORIES:
+                raise FieldError(f"errors.{category}", f"unknown error category; known: {', '.join(CATEGORIES)}")
+            errors.append((category, _checked(f"errors.{category}", _fractions, magnitudes)))
+        object.__setattr__(self, "errors", tuple(errors))
 
     @property
     def cells(self) -> list[tuple[str, float]]:
@@ -133,41 +134,48 @@ class Study:
 
     @classmethod
     def from_dict(cls, data: dict, where: str = "study", base: Path = Path(".")) -> Study:
-        unknown = set(data) - {"study", "errors", "parameter", "options"}
-        if unknown:
-            raise ValueError(f"{where}: unknown top-level keys {sorted(unknown)}")
+        """From the parsed TOML; every key checked before anything is read or run,
+        errors naming ``where`` and the key (``study.samples``, ``errors.relative``)."""
+        _refuse_unknown(data, ("study", "errors", "parameter", "options"), where, "")
+        for table in ("study", "errors"):
+            if not isinstance(data.get(table, {}), dict):
+                raise ValueError(f"{where}: {table}: expected a table [{table}], got {_show(data[table])}")
         s = dict(data.get("study", {}))
-        allowed = {"model", "sensors", "modelling_error", "error_pids", "error_alpha", "n_modes", "samples",
-                   "seed", "chunk_size", "eigensolver", "lockstep"}
-        if set(s) - allowed:
-            raise ValueError(f"{where}: [study] unknown keys {sorted(set(s) - allowed)}; allowed {sorted(allowed)}")
-        data_dir = resources.files("updating") / "data"
-        model = s.pop("model", "tree")
-        sensors = s.pop("sensors", "tree")
-        model = Path(str(data_dir / "tree.bdf")) if model == "tree" else base / model
-        sensors = Path(str(data_dir / "tree_sensors.csv")) if sensors == "tree" else base / sensors
-        if "modelling_error" in s:
-            if {"error_pids", "error_alpha"} & set(s):
-                raise ValueError(f"{where}: give modelling_error or error_pids/error_alpha, not both")
-            number = int(s.pop("modelling_error"))
-            if number not in TABLE_4_6:
-                raise ValueError(f"{where}: modelling_error {number}: Table 4.6 has models 1, 2, 3")
-            pids, alpha = TABLE_4_6[number]
-        else:
-            pids, alpha = s.pop("error_pids", TABLE_4_6[1][0]), s.pop("error_alpha", TABLE_4_6[1][1])
-        errors = data.get("errors", TABLE_4_7)
-        if "parameter" in data:
-            parameters = ParameterSet.from_dict(data, where)
-        else:
-            parameters = tree_parameters(Options.from_dict(data["options"], where) if "options" in data else None)
+        _refuse_unknown(s, ("model", "sensors", "modelling_error", *_STUDY_SCHEMA), where, "study.")
         try:
-            return cls(model=model, sensors=sensors, error_pids=tuple(int(p) for p in pids),
-                       error_alpha=float(alpha), parameters=parameters,
-                       n_modes=tuple(int(n) for n in s.pop("n_modes", (2, 5, 10, 20))),
-                       errors=tuple((str(c), tuple(float(m) for m in v)) for c, v in errors.items()),
-                       **{k: (str(v) if k == "eigensolver" else int(v)) for k, v in s.items()})
-        except (TypeError, ValueError) as err:
+            files = {key: _checked(f"study.{key}", _name, s.pop(key, "tree")) for key in ("model", "sensors")}
+            if "modelling_error" in s:
+                if {"error_pids", "error_alpha"} & set(s):
+                    raise FieldError("study.modelling_error", "give modelling_error or error_pids/error_alpha, "
+                                                              "not both")
+                number = _checked("study.modelling_error", _integer(1, len(TABLE_4_6)), s.pop("modelling_error"))
+                s["error_pids"], s["error_alpha"] = TABLE_4_6[number]
+            if "parameter" in data:
+                parameters = ParameterSet.from_dict(data, where)
+            else:
+                parameters = tree_parameters(Options.from_dict(data["options"], where) if "options" in data else None)
+            data_dir = resources.files("updating") / "data"
+            return cls(model=Path(str(data_dir / "tree.bdf")) if files["model"] == "tree" else base / files["model"],
+                       sensors=(Path(str(data_dir / "tree_sensors.csv")) if files["sensors"] == "tree"
+                                else base / files["sensors"]),
+                       error_pids=s.pop("error_pids", TABLE_4_6[1][0]), error_alpha=s.pop("error_alpha", TABLE_4_6[1][1]),
+                       parameters=parameters, errors=tuple(data.get("errors", TABLE_4_7).items()), **s)
+        except FieldError as err:
             raise ValueError(f"{where}: {err}") from None
+
+
+def _fractions(v):
+    if not isinstance(v, (list, tuple, np.ndarray)) or not len(v) \
+            or not all(f is not None and 0 <= f < 1 for f in map(_finite, v)):
+        raise _Expected("a non-empty array of fractions in [0, 1), e.g. 0.05 for 5 %")
+    return tuple(float(m) for m in v)
+
+
+_STUDY_SCHEMA = {
+    "error_pids": _integers("property ids", nonempty=True), "error_alpha": _number(-1.0, strict=True),
+    "n_modes": _integers("numbers of modes", nonempty=True), "samples": _integer(1), "seed": _integer(0),
+    "chunk_size": _integer(1), "eigensolver": _choice("subspace", "full", "sparse"), "lockstep": _integer(1),
+}
 
 
 def tree_parameters(options: Options | None = None) -> ParameterSet:

@@ -25,7 +25,7 @@ def _load_study(path: Path):
 
     try:
         return Study.from_toml(path)
-    except (ValueError, TypeError, OSError) as err:
+    except (ValueError, OSError) as err:
         message = str(err)
         fail(message if str(path) in message else f"{path}: {message}")
 
