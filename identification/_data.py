@@ -8,7 +8,7 @@ which case only the shape checks run (the value checks need concrete numbers).
 
 from __future__ import annotations
 
-import csv
+import os
 import warnings
 from collections.abc import Sequence
 
@@ -19,6 +19,8 @@ from jaxtyping import Bool, Float, Int, Shaped
 
 import jaxfem
 from jaxfem import Model
+
+from ._csv import MAX_ID, integer, table_rows
 
 FRF_KINDS = ("receptance", "mobility", "accelerance")  # displacement, velocity, acceleration / force
 _AXES = "XYZ"
@@ -140,23 +142,22 @@ class Sensors(eqx.Module):
 
     @classmethod
     def read_csv(cls, path) -> Sensors:
-        """Sensors from a CSV file with the columns ``label,node,component`` (component:
-        direction code as in :meth:`from_components`); a bad row names file and line."""
-        with open(path, newline="") as f:
-            reader = csv.DictReader(f)
-            missing = {"node", "component"} - set(reader.fieldnames or ())
-            if missing:
-                raise ValueError(f"{path}: missing columns {sorted(missing)} (need label,node,component)")
-            nodes, codes = [], []
-            for row in reader:
-                try:
-                    nodes.append(int(row["node"]))
-                    codes.append(int(row["component"]))
-                except (TypeError, ValueError):
-                    raise ValueError(f"{path}, line {reader.line_num}: node and component must be integers, "
-                                     f"got {row['node']!r}, {row['component']!r}") from None
-        if not nodes:
-            raise ValueError(f"{path}: no sensors")
+        """Sensors from a CSV file with the columns ``label,node,component`` (node an id
+        1..2³¹−1, component a direction code ±1..6 as in :meth:`from_components`); a bad
+        row, or a DoF listed twice, names file and line (:func:`identification._csv.table_rows`)."""
+        nodes, codes, first = [], [], {}
+        for line, row in table_rows(path, ("node", "component"), "sensor list"):
+            where = f"{os.fspath(path)}, line {line}"
+            node = integer(row["node"], f"{where}: field 'node'", 1, what="a node id (integer)")
+            code = integer(row["component"], f"{where}: field 'component'", -MAX_ID, MAX_ID)
+            if not 1 <= abs(code) <= 6:
+                raise ValueError(f"{where}: field 'component': {code} is not a direction code ±1..6")
+            if (node, code) in first or (node, -code) in first:
+                raise ValueError(f"{where}: node {node} component {abs(code)} repeats line "
+                                 f"{first.get((node, code), first.get((node, -code)))}")
+            first[node, code] = line
+            nodes.append(node)
+            codes.append(code)
         return cls.from_components(nodes, codes)
 
     @classmethod

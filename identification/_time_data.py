@@ -13,7 +13,6 @@ from a map {channel: (node, direction code)}, read from CSV by :func:`read_dof_m
 
 from __future__ import annotations
 
-import csv
 import math
 import os
 import re
@@ -24,6 +23,7 @@ import equinox as eqx
 import numpy as np
 from jaxtyping import Float, Int
 
+from ._csv import integer, table_rows
 from ._data import FRFData, Sensors
 from ._frf import ESTIMATORS, WINDOWS, frf_from_time
 
@@ -37,7 +37,7 @@ _SI_UNIT = {  # (translational, rotational) DoF
     "acceleration": ("m/s²", "rad/s²"),
 }
 _AXES = {"X": 1, "Y": 2, "Z": 3, "RX": 4, "RY": 5, "RZ": 6}
-_NODE_DIR = re.compile(r"^\s*(\d+)\s*:\s*([+-]?)\s*([1-6])\s*$")
+_NODE_DIR = re.compile(r"^\s*([0-9]+)\s*:\s*([+-]?)\s*([1-6])\s*$")
 _DIRECTION = re.compile(r"^\s*([+-]?)\s*(?:([1-6])|(R?[XYZ]))\s*$", re.IGNORECASE)
 
 
@@ -321,39 +321,18 @@ def read_dof_map(path: str | os.PathLike) -> dict[str, tuple[int, int]]:
     channel, a bad node or direction, a channel listed twice, or a file without rows.
     """
     path = os.fspath(path)
-    with open(path, newline="", encoding="utf-8-sig") as f:
-        reader = csv.DictReader(f, skipinitialspace=True)
-        fields = [(name or "").strip().lower() for name in (reader.fieldnames or [])]
-        missing = [c for c in ("channel", "node", "direction") if c not in fields]
-        if missing:
-            raise ValueError(f"{path}, line 1: missing column(s) {missing}; the header must be channel,node,direction")
-        reader.fieldnames = fields
-        mapping: dict[str, tuple[int, int]] = {}
-        where: dict[str, int] = {}
-        for row in reader:
-            line = reader.line_num
-            if None in row:
-                raise ValueError(f"{path}, line {line}: more fields than the header's {len(fields)}")
-            for name in ("channel", "node", "direction"):
-                if row[name] is None or not row[name].strip():
-                    raise ValueError(f"{path}, line {line}: field {name!r} is empty")
-            channel = row["channel"].strip()
-            try:
-                node = int(row["node"])
-            except ValueError:
-                raise ValueError(f"{path}, line {line}: field 'node': {row['node']!r} is not a node id "
-                                 "(integer)") from None
-            if node < 0:
-                raise ValueError(f"{path}, line {line}: field 'node': {node} is negative")
-            try:
-                code = parse_direction(row["direction"])
-            except ValueError as err:
-                raise ValueError(f"{path}, line {line}: field 'direction': {err}") from None
-            if channel in mapping:
-                raise ValueError(f"{path}, line {line}: channel {channel!r} repeats line {where[channel]}")
-            mapping[channel], where[channel] = (node, code), line
-    if not mapping:
-        raise ValueError(f"{path}: no rows under the header channel,node,direction")
+    mapping: dict[str, tuple[int, int]] = {}
+    where: dict[str, int] = {}
+    for line, row in table_rows(path, ("channel", "node", "direction"), "channel map"):
+        channel = row["channel"]
+        node = integer(row["node"], f"{path}, line {line}: field 'node'", 0, what="a node id (integer)")
+        try:
+            code = parse_direction(row["direction"])
+        except ValueError as err:
+            raise ValueError(f"{path}, line {line}: field 'direction': {err}") from None
+        if channel in mapping:
+            raise ValueError(f"{path}, line {line}: channel {channel!r} repeats line {where[channel]}")
+        mapping[channel], where[channel] = (node, code), line
     return mapping
 
 

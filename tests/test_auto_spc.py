@@ -77,3 +77,17 @@ def test_a_free_mass_is_announced_and_a_too_short_element_refused_with_its_lengt
     with pytest.raises(ValueError, match=r"f.bdf:\d+: CBAR 105 field 5 \(GB\): zero length: the ends \(offsets "
                        r"included\) are 1e-10 apart, at \[1.0, 1.5, 3.0\] and \[1.0000000001, 1.5, 3.0\]"):
         _frame("GRID,11,,1.0000000001,1.5,3.\nCBAR,105,1,7,11,0.,0.,1.\n")
+
+
+def test_jaxfem_modes_names_the_auto_spc_and_the_free_mass(tmp_path):
+    from typer.testing import CliRunner
+
+    from updating.cli import app
+
+    path = tmp_path / "stub.bdf"
+    path.write_text(FRAME.replace("ENDDATA", "GRID,11,,1.000000001,1.5,3.\nCROD,105,6,7,11\nENDDATA"))
+    result = CliRunner().invoke(app, ["modes", str(path), "-n", "4"])
+    assert result.exit_code == 0, result.output
+    assert "condensed; 2 auto-SPC)" in result.output, result.output
+    assert "auto-SPC, neither stiffness nor mass, grid (components): 11 (56)" in result.output
+    assert "(node, component) (11, 2), (11, 3): each moves freely" in result.output

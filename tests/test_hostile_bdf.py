@@ -190,6 +190,8 @@ def test_bytes_that_are_not_utf8_are_named(tmp_path):
     [
         ("MAT1,1,2.1+11,,0.6,7850.", ("m.bdf:5: MAT1 1 field 5 (NU): NU must lie in (-1, 0.5], got 0.6",)),
         ("MAT1,1,2.1+11,,-1.5,7850.", ("MAT1 1 field 5 (NU): NU must lie in (-1, 0.5], got -1.5",)),
+        ("MAT1,1,2.1+11,,-1.,7850.", ("MAT1 1 field 5 (NU): NU must lie in (-1, 0.5], got -1.0",)),  # was 1/0
+        ("MAT1,1,2.1+11,,20.,7850.", ("MAT1 1 field 5 (NU): NU must lie in (-1, 0.5], got 20.0",)),  # was accepted
         ("MAT1,1,2.1+11,8.+10,0.7,7850.", ("MAT1 1 field 5 (NU): NU must lie in (-1, 0.5], got 0.7",)),  # all given
         ("MAT1,1,2.1+11,2.+10,,7850.", ("MAT1 1 field 4 (G): E = 2.1e+11 and G = 2e+10 give NU = E/(2G) - 1 = 4.25,",
                                         "outside (-1, 0.5]")),

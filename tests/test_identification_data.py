@@ -254,5 +254,22 @@ def test_sensors_read_csv(tmp_path):
     with pytest.raises(ValueError, match=r"bad\.csv, line 3"):
         Sensors.read_csv(bad)
     (tmp_path / "cols.csv").write_text("label,grid\nA,1\n")
-    with pytest.raises(ValueError, match="missing columns"):
+    with pytest.raises(ValueError, match=r"cols\.csv, line 1: missing column\(s\) \['node', 'component'\]"):
         Sensors.read_csv(tmp_path / "cols.csv")
+    for text, message in [
+        ("label,node,component\nA,\u0661,3\n", "line 2: field 'node': '\u0661' is not a node id (integer)"),
+        ("label,node,component\nA,123456789012345678901,3\n", "line 2: field 'node': 123456789012345678901 is "
+                                                               "outside 1..2,147,483,647"),  # was an OverflowError
+        ("label,node,component\nA,0,3\n", "line 2: field 'node': 0 is outside 1..2,147,483,647"),
+        ("label,node,component\nA,1,7\n", "line 2: field 'component': 7 is not a direction code ±1..6"),
+        ("label,node,component\nA,1,3\nB,1,-3\n", "line 3: node 1 component 3 repeats line 2"),
+        ("label,node,component\nA,1,3,9\n", "line 2: more fields than the header's 3"),  # was ignored
+        ("label,node,component\nA,1\n", "line 2: field 'component' is empty"),
+    ]:
+        bad.write_text(text)
+        with pytest.raises(ValueError) as err:
+            Sensors.read_csv(bad)
+        assert str(err.value) == f"{bad}, {message}"
+    bad.write_bytes(b"label,node,component\ncaf\xe9,1,3\n")
+    with pytest.raises(ValueError, match=r"bad\.csv, line 2: byte 0xe9 is not UTF-8 \(save the sensor list as UTF-8\)"):
+        Sensors.read_csv(bad)

@@ -264,6 +264,8 @@ def test_dof_map_csv(tmp_path):
         ("channel,node,direction\nacc1,101,3\nacc1,102,3\n", r"line 3: channel 'acc1' repeats line 2"),
         ("channel,node,direction\nacc1,101,3,9\n", r"line 2: more fields than the header's 3"),
         ("channel,node,direction\n", r"no rows"),
+        ("channel,node,direction\nacc1,\u0661,3\n", r"line 2: field 'node': '\u0661' is not a node id"),  # int() took it
+        ("channel,node,direction\nacc1,99999999999,3\n", r"line 2: field 'node': 99999999999 is outside 0\.\.2,147,483,647"),
     ]:
         path.write_text(text)
         with pytest.raises(ValueError, match=str(path).replace(".", r"\.") + ".*" + message):

@@ -57,6 +57,13 @@ def _print_table(result: dict) -> None:
     typer.echo(f"model {result['model']}: {result['n_dof']} DoFs after constraints "
                f"({result['n_massless']} massless, condensed; {len(result['auto_spc'])} auto-SPC); "
                f"{result['eigensolver']} eigensolver, {result['solve_seconds']:.1f} s")
+    if result["auto_spc"]:
+        by_grid: dict[int, str] = {}
+        for grid, component in result["auto_spc"]:
+            by_grid[grid] = by_grid.get(grid, "") + str(component)
+        shown = ", ".join(f"{grid} ({c})" for grid, c in list(by_grid.items())[:10])
+        typer.echo(f"auto-SPC, neither stiffness nor mass, grid (components): {shown}"
+                   + (f" and {len(by_grid) - 10} more grids (all in --json)" if len(by_grid) > 10 else ""))
     typer.echo(f"{'mode':>5}  {'f [Hz]':>12}  {'λ = ω² [rad²/s²]':>18}")
     for i, (f, lam) in enumerate(zip(result["frequencies_hz"], result["eigenvalues"]), 1):
         typer.echo(f"{i:>5}  {f:>12.4f}  {lam:>18.6e}")
