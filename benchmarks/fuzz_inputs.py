@@ -20,7 +20,10 @@ Outcome classes:
   valid file with fewer datasets, which no reader can tell from the original;
 - ``uncaught``: any other exception (a bug).
 
-``python -m benchmarks.fuzz_inputs --bdf 5000 --uff 1000 --seed 0`` prints the counts per
+Sensor lists: the bundled ``*_sensors.csv`` through ``Sensors.read_csv`` (``lost``: a
+non-blank row that became neither a sensor nor an error).
+
+``python -m benchmarks.fuzz_inputs --bdf 5000 --uff 1000 --csv 500 --seed 0`` prints the counts per
 class and the first examples of ``unlocated``, ``lost`` and ``uncaught``.
 """
 
@@ -42,7 +45,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 HOSTILE = ["1.E400", "nan", "-inf", "123456789012345678901", "١٢", "\ufeff", "\f", "\u2028", "-1.", "0.", "", "1.7",
            "THRU", "99999999"]
-_WHERE = re.compile(r"line \d+|dataset #\d+|\.bdf:\d+|\.uff|card|field", re.IGNORECASE)
+_WHERE = re.compile(r"line \d+|dataset #\d+|\.bdf:\d+|\.uff|\.csv|card|field", re.IGNORECASE)
 
 
 def mutate(text: str, rng: random.Random) -> tuple[str, str]:
@@ -172,6 +175,32 @@ def fuzz_uff(n: int, rng: random.Random) -> tuple[Counter, dict]:
     return counts, examples
 
 
+def fuzz_csv(n: int, rng: random.Random) -> tuple[Counter, dict]:
+    """The bundled sensor lists through ``Sensors.read_csv``: every non-blank row after the
+    header must become a sensor or an error (``lost`` otherwise)."""
+    from identification import Sensors
+
+    files = sorted((ROOT / "updating" / "data").glob("*_sensors.csv"))
+    sources = [(f.name, f.read_text()) for f in files]
+    counts, examples = Counter(), {}
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "sensors.csv"
+        for _ in range(n):
+            name, text = rng.choice(sources)
+            mutant, what = mutate(text, rng)
+            path.write_text(mutant, errors="surrogateescape")
+
+            def run():
+                rows = [line for line in mutant.splitlines()[1:] if line.strip()]
+                got = len(Sensors.read_csv(path))
+                return f"{got} sensors of {len(rows)} rows" if got < len(rows) else None
+
+            outcome, message = _classify(run)
+            counts[outcome] += 1
+            examples.setdefault(outcome, []).append(f"{name}, {what}: {message[:300]}")
+    return counts, examples
+
+
 def _print(title: str, counts: Counter, examples: dict, seconds: float) -> int:
     total = sum(counts.values())
     print(f"{title}: {total} mutants in {seconds:.0f} s")
@@ -187,6 +216,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--bdf", type=int, default=1000, help="bulk-data mutants")
     parser.add_argument("--uff", type=int, default=500, help="universal-file mutants")
+    parser.add_argument("--csv", type=int, default=200, help="sensor-list mutants")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
     import jax
@@ -194,7 +224,8 @@ def main(argv=None) -> int:
     jax.config.update("jax_enable_x64", True)
     rng = random.Random(args.seed)
     bad = 0
-    for title, n, run in (("bulk data", args.bdf, fuzz_bdf), ("universal files", args.uff, fuzz_uff)):
+    for title, n, run in (("bulk data", args.bdf, fuzz_bdf), ("universal files", args.uff, fuzz_uff),
+                          ("sensor lists", args.csv, fuzz_csv)):
         if n:
             start = time.perf_counter()
             counts, examples = run(n, rng)

@@ -391,3 +391,16 @@ if given is not None:
                 read_uff(path)
             except ValueError as err:
                 assert str(path) in str(err) and re.search(r"dataset|line", str(err)), str(err)
+
+
+def test_the_fuzz_harness_finds_nothing_uncaught_or_lost_in_a_short_run(capsys):
+    """A short run of ``benchmarks/fuzz_inputs.py`` (the acceptance run has ≥ 5,000
+    mutants per reader): every mutant ends in a result, a warning or a located error."""
+    from benchmarks.fuzz_inputs import main
+
+    assert main(["--bdf", "30", "--uff", "60", "--csv", "60", "--seed", "7"]) == 0
+    out = capsys.readouterr().out
+    for title, n in (("bulk data", 30), ("universal files", 60), ("sensor lists", 60)):
+        assert f"{title}: {n} mutants" in out, out
+    for outcome in ("unlocated", "lost", "uncaught"):
+        assert re.findall(rf"^  {outcome}\s+(\d+)$", out, re.MULTILINE) == ["0", "0", "0"], out
