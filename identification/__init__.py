@@ -38,9 +38,9 @@ from ._sdof import sdof_fit as sdof_fit
 from ._sine import damping_matrix as damping_matrix
 from ._sine import mode_indicator as mode_indicator
 from ._sine import sine_response as sine_response
+from ._uff import read_trace_lines as read_trace_lines
 from ._uff import read_uff as read_uff
 from ._uff_write import write_uff as write_uff
-from ._uff_lines import read_trace_lines as read_trace_lines
 from ._geometry import GeometryMap as GeometryMap
 from ._geometry import map_test_geometry as map_test_geometry
 from ._time_data import FRFEstimate as FRFEstimate

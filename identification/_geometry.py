@@ -283,7 +283,7 @@ def map_test_geometry(
         w = int(far[np.argmax(located.distance[far])])
         raise ValueError(
             f"{len(far)} test node(s) lie farther than {limit:.3g} m from the model{why}"
-            + f"; the worst, test node {nodes[w]}, is {located.distance[w]:.3g} m from {located._where(w)}: check the "
+            + f"; the worst, test node {nodes[w]}, is {located.distance[w]:.3g} m from {located.where(w)}: check the "
             "test file's units and frame (--test-units, --align) or accept the distances with --max-distance")
     offset = 10 ** len(str(max(int(ids.max(initial=0)), int(nodes.max(initial=0)))))  # 1 → 10001 beside grid 6001
     renamed: dict[int, int] = {}
@@ -299,6 +299,6 @@ def map_test_geometry(
             new = renamed[g] = offset + g
         model, _ = add_interpolated_grid(model, read.tolist(), weights.tolist(), xyz[s], new)
         grids.append(new)
-    reads = tuple(located._where(s) for s in range(len(nodes)))
+    reads = tuple(located.where(s) for s in range(len(nodes)))
     return model, GeometryMap(method, nodes, np.asarray(grids, dtype=np.int64), xyz, reads, located.distance,
                               alignment, note, renamed)

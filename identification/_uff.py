@@ -37,7 +37,9 @@ import equinox as eqx
 import numpy as np
 import pyuff
 
+from ._csv import MAX_ID
 from ._data import FRFData, ModalData, Sensors
+from ._uff_lines import trace_lines
 
 LENGTH_UNITS = {"m": 1.0, "mm": 1000.0, "cm": 100.0, "in": 1.0 / 0.0254}  # file units per metre
 
@@ -103,6 +105,7 @@ def read_uff(path: str | os.PathLike, *, length_units: str | None = None,
       follows the ordinate type: displacement, velocity, acceleration.
     - ``"time"``: :class:`TimeHistories` of all dataset-58 time records (function type
       1: force, displacement, velocity, acceleration channels, in SI), or None.
+    - ``"lines"``: the trace lines of datasets 82 as node-id pairs (:func:`read_trace_lines`).
 
     ``dof_map``: {channel name: (node, direction code)} for channel-only records (node
     0, direction 0; the name is the response or reference entity name, or ID line 1 of
@@ -165,6 +168,7 @@ def read_uff(path: str | os.PathLike, *, length_units: str | None = None,
                     for label, sys in systems.items() if label != 0},
         "modes": modes,
         "frfs": frfs,
+        "lines": trace_lines(by_type.get(82, []), path),
         "time": time,
     }
 
@@ -185,6 +189,14 @@ _DELIMITER = re.compile(rb"^    -1[ \t]*\r?$", re.MULTILINE)
 # next line as some writers put it.
 _BINARY_CLOSE = re.compile(rb"(?:\r?\n)?(    -1)[ \t]*\r?(?:\n|\Z)")
 _TEXT = re.compile(rb"\S")
+
+
+def read_trace_lines(path: str | os.PathLike) -> list[tuple[int, int]]:
+    """The trace lines (datasets 82) of a universal file as node-id pairs, each once
+    (:func:`identification._uff_lines.trace_lines`); empty when it has none. The file is
+    checked whole as by :func:`read_uff` (:func:`read_records`)."""
+    path = os.fspath(path)
+    return trace_lines(read_records(path, lambda kind: kind == 82)[0], path)
 
 
 def read_records(path: str, wanted: Callable[[int], bool] = lambda kind: True) -> tuple[list[tuple[int, dict]], list[_Block]]:
@@ -348,7 +360,6 @@ def _check_split(uff: pyuff.UFF, types: list[int], blocks: list[_Block], path: s
 _ARRAYS = {15: ("node_nums", "def_cs", "disp_cs", "x", "y", "z"), 2411: ("node_nums", "def_cs", "disp_cs", "x", "y", "z"),
            55: ("node_nums", "r1", "r2", "r3", "r4", "r5", "r6"), 58: ("x", "data")}
 _IDS = ("node_nums", "def_cs", "disp_cs", "mode_n", "rsp_node", "ref_node", "cs_num", "ref_cs_num", "CS_sys_labels")
-_MAX_ID = 2**31 - 1
 
 
 def _check_record(record: dict, where: str) -> None:
@@ -364,9 +375,9 @@ def _check_record(record: dict, where: str) -> None:
                 ids = np.atleast_1d(np.asarray(record[key], dtype=np.float64))
             except (TypeError, ValueError, OverflowError):
                 raise ValueError(f"{where}: {key} is not a list of numbers") from None
-            bad = ~np.isfinite(ids) | (ids != np.round(ids)) | (np.abs(ids) > _MAX_ID)
+            bad = ~np.isfinite(ids) | (ids != np.round(ids)) | (np.abs(ids) > MAX_ID)
             if np.any(bad):
-                raise ValueError(f"{where}: {key} {ids[bad][0]:.10g} is not an integer within ±{_MAX_ID}")
+                raise ValueError(f"{where}: {key} {ids[bad][0]:.10g} is not an integer within ±{MAX_ID}")
 
 
 def _units(records: list[tuple[int, dict]], path: str, length_units: str | None) -> dict:

@@ -107,7 +107,8 @@ class SensorMap(eqx.Module):
         """The largest sensor-to-model distance [m] (0 for no sensors)."""
         return float(self.distance.max()) if len(self) else 0.0
 
-    def _where(self, s: int) -> str:
+    def where(self, s: int) -> str:
+        """What sensor ``s`` reads: ``grid G`` or ``CQUAD4 E (g1 g2 g3 g4)``."""
         g = self.grids[s][self.grids[s] >= 0]
         if self.elements[s] >= 0:
             return f"{self.element_types[s]} {self.elements[s]} ({' '.join(str(x) for x in g)})"
@@ -118,7 +119,7 @@ class SensorMap(eqx.Module):
         then the worst distance and its sensor."""
         rows = [
             (self.labels[s], _direction_label(self.directions[s], self.rotational[s]),
-             *(f"{v:.6g}" for v in self.xyz[s]), self._where(s), f"{self.distance[s]:.3e}")
+             *(f"{v:.6g}" for v in self.xyz[s]), self.where(s), f"{self.distance[s]:.3e}")
             for s in range(len(self))
         ]
         head = ("sensor", "direction", "x [m]", "y [m]", "z [m]", "grid/element", "distance [m]")

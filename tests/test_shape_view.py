@@ -16,7 +16,7 @@ from typer.testing import CliRunner
 
 import jaxfem
 from benchmarks.frames import frame_bdf
-from identification import ModalData, Sensors, observation_matrix, read_trace_lines, write_uff
+from identification import ModalData, Sensors, observation_matrix, read_trace_lines, read_uff, write_uff
 from jaxfem.io import read_bdf
 from updating import Effect
 from updating import _shape_view as sv
@@ -191,13 +191,14 @@ def test_test_geometry_follows_the_map(tmp_path):
     moved = {k: R @ np.array(v) + t for k, v in raw.items()}
     gmap = SimpleNamespace(nodes=np.array([1, 2, 3]), xyz=np.array([moved[k] for k in (1, 2, 3)]),
                            renamed={3: 1003}, alignment={"rotation": R, "translation": t})
-    nodes, lines, names = sv.measured_geometry(uff, gmap)
+    content = read_uff(uff, length_units="m")
+    nodes, lines, names = sv.measured_geometry(content, gmap)
     assert sorted(nodes) == [1, 2, 3, 4] and names == {1: 1, 2: 2, 1003: 3}
     np.testing.assert_allclose(nodes[4], moved[4], atol=1e-12)
     assert lines == [(1, 2), (2, 3), (3, 4), (1, 4)]
     in_mm = SimpleNamespace(nodes=np.array([1, 2, 3]), xyz=1000 * np.array([raw[k] for k in (1, 2, 3)]),
                             renamed={}, alignment=None)
-    nodes, lines, _ = sv.measured_geometry(uff, in_mm)
+    nodes, lines, _ = sv.measured_geometry(content, in_mm)
     assert sorted(nodes) == [1, 2, 3] and lines == [(1, 2), (2, 3)]
     assert sv.measured_geometry(None, None) == ({}, [], {})
 

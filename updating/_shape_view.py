@@ -28,7 +28,6 @@ from __future__ import annotations
 import html
 import json
 import os
-import warnings
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
@@ -96,11 +95,12 @@ def measured_translations(sensors, shapes: Float[ArrayLike, "n m"]) -> dict[int,
     return out
 
 
-def measured_geometry(path: str | os.PathLike | None = None, gmap=None
-                  ) -> tuple[dict[int, np.ndarray], list[tuple[int, int]], dict[int, int]]:
+def measured_geometry(content: dict | None = None, gmap=None
+                      ) -> tuple[dict[int, np.ndarray], list[tuple[int, int]], dict[int, int]]:
     """The test nodes and trace lines to draw, in the model's frame.
 
-    **Arguments:** the universal file (datasets 15/2411 nodes, 82 trace lines) and the
+    **Arguments:** what :func:`identification.read_uff` read from the universal file
+    (``nodes``: datasets 15/2411, ``lines``: 82) and the
     :class:`identification.GeometryMap` that put the measured nodes on the model (None:
     the file's coordinates are the model's). **Returns:** ``(nodes, lines, names)``:
     {test node id: xyz m}, trace lines between them (node-id pairs), and {sensor node id
@@ -110,15 +110,9 @@ def measured_geometry(path: str | os.PathLike | None = None, gmap=None
     measured nodes do not land on the mapped ones (another unit): no node is drawn where
     it was neither measured nor mapped.
     """
-    raw: dict[int, np.ndarray] = {}
-    lines: list[tuple[int, int]] = []
-    if path is not None:
-        from identification import read_trace_lines, read_uff
-
-        with warnings.catch_warnings():  # read once already: its warnings were reported then
-            warnings.simplefilter("ignore", UserWarning)
-            raw = {int(k): np.asarray(v, np.float64) for k, v in read_uff(path)["nodes"].items()}
-        lines = read_trace_lines(path)
+    content = content or {}
+    raw = {int(k): np.asarray(v, np.float64) for k, v in content.get("nodes", {}).items()}
+    lines = list(content.get("lines", []))
     if gmap is None:
         nodes, names = raw, {}
     else:

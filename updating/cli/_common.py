@@ -140,6 +140,9 @@ MapOpt = Annotated[str, typer.Option(
 MaxDistanceOpt = Annotated[float | None, typer.Option(
     "--max-distance", metavar="M", help="largest accepted test-node-to-model distance, m (default 5 % of the "
                                         "model's size)")]
+DofMapOpt = Annotated[Path | None, typer.Option(
+    "--dof-map", metavar="CSV", exists=True, dir_okay=False,
+    help="channel → DoF table (columns channel,node,direction) for records without DoFs (node 0, direction 0)")]
 AllowUnsupportedOpt = Annotated[bool, typer.Option(
     "--allow-unsupported", help="build the model without the structural cards jaxfem does not support (elements, "
                                 "properties, materials it cannot read): the structure then lacks them")]
@@ -189,8 +192,9 @@ def load_inputs(model_path: Path, test_path: Path, params_path: Path | None = No
                 geometry: Geometry = Geometry(), allow_unsupported: bool = False):
     """Model (with the test nodes mapped onto it, :func:`map_geometry`), real test modes,
     observation matrix, the parameter set (None without a file; ``solver``, from
-    ``--solver``, overrides its eigensolver) and the :class:`identification.GeometryMap`,
-    checked against each other; on bad input exit 2 naming the file."""
+    ``--solver``, overrides its eigensolver), the :class:`identification.GeometryMap` and
+    everything read from the test file (:func:`identification.read_uff`), checked
+    against each other; on bad input exit 2 naming the file."""
     from dataclasses import replace
 
     from identification import observation_matrix
@@ -219,7 +223,7 @@ def load_inputs(model_path: Path, test_path: Path, params_path: Path | None = No
             parameterise(model, params)
         except ValueError as err:
             fail(f"{params_path}: {err}")
-    return model, test, C, params, gmap
+    return model, test, C, params, gmap, content
 
 
 def mode_labels(freqs) -> list[str]:

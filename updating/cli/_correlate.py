@@ -75,7 +75,7 @@ def correlate(
 
     check_plots(plots)
     check_thresholds(n, min_mac, max_freq_dev, max_automac)
-    model, test, C, _, gmap = load_inputs(model_path, test_path,
+    model, test, C, _, gmap, content = load_inputs(model_path, test_path,
                                           geometry=Geometry(map_method, max_distance, test_units, align),
                                           allow_unsupported=allow_unsupported)
     ne = test.n_modes
@@ -139,7 +139,7 @@ def correlate(
         from .._shape_view import correlation_view, measured_geometry
 
         try:
-            nodes, lines, names = measured_geometry(test_path, gmap)
+            nodes, lines, names = measured_geometry(content, gmap)
             view = correlation_view(report / "shapes.html", model=model, phi=np.asarray(phi), test=test,
                                     at_sensors=phi_a, pairing=pairing, test_nodes=nodes, test_lines=lines,
                                     names=names, title=f"mode shapes: {test_path.name} vs {model_path.name}")

@@ -28,7 +28,8 @@ def demo(
     typer.echo(f"case: {model_path} (nominal model), {test_path} (14 modes at 24 sensors); engineer's parameters: "
                + ", ".join(f"{p.name} ({p.kind} of pids {list(p.pids)})" for p in PARAMETERS.parameters))
     model = load_model(model_path)
-    test = load_test(test_path)
+    content: dict = {}
+    test = load_test(test_path, None, content)
     diagnosis(model, test, PARAMETERS, model_name=model_path.name, test_name=test_path.name,
-              json_out=out / "diagnosis.json", report=out / "report", test_path=test_path)
+              json_out=out / "diagnosis.json", report=out / "report", test_content=content)
     typer.echo(f"demo done in {time.perf_counter() - start:.0f} s")

@@ -127,7 +127,7 @@ def _figures(rep: dict, diag, confirmation, model, test, report: Path) -> dict:
 
 
 def _shape_views(diag, confirmation, test, gmap, params, options, report: Path,
-                 test_path: Path | None = None) -> dict[str, str]:
+                 test_content: dict | None = None) -> dict[str, str]:
     """The 3-D views of test and model mode shapes next to the report: the initial model
     (``shapes.html``) and, with an effect added, the updated model (``shapes_after.html``),
     each paired anew with the parameter file's thresholds; {link text: file name}. A view
@@ -150,7 +150,7 @@ def _shape_views(diag, confirmation, test, gmap, params, options, report: Path,
     f_e, phi_e = np.asarray(test.frequencies_hz), np.asarray(test.shapes)
     views = {}
     try:
-        nodes, lines, names = measured_geometry(test_path, gmap)
+        nodes, lines, names = measured_geometry(test_content, gmap)
         for label, name, m in models:
             lam, phi = jaxfem.modes(m, n_model_modes(m, len(f_e)), solver=solver)
             at = observation_matrix(m, test.sensors)[0] @ np.asarray(phi)
@@ -167,11 +167,11 @@ def _shape_views(diag, confirmation, test, gmap, params, options, report: Path,
 
 def diagnosis(model, test, params, *, model_name: str, test_name: str, json_out: Path | None,
               report: Path | None, frf_path: Path | None = None, options=None, reference: dict | None = None,
-              gmap=None, test_path: Path | None = None) -> dict:
+              gmap=None, test_content: dict | None = None) -> dict:
     """Diagnose, add the winning effect, update, print, write JSON and the HTML report
     (``reference``: the reference state's file and per-mode change, when the test is a change;
-    ``gmap``: the test geometry's map onto the model; ``test_path``: the test file, for
-    the trace lines of the 3-D view)."""
+    ``gmap``: the test geometry's map onto the model; ``test_content``: what was read
+    from the test file (:func:`identification.read_uff`), for the 3-D view's test nodes and lines)."""
     from .._diagnose import DiagnoseOptions, add_effect, diagnose
     from .._report import json_safe, write_report
 
@@ -216,7 +216,7 @@ def diagnosis(model, test, params, *, model_name: str, test_name: str, json_out:
         try:
             report.mkdir(parents=True, exist_ok=True)
             figures = _figures(rep, diag, confirmation, model, test, report)
-            views = _shape_views(diag, confirmation, test, gmap, params, options, report, test_path)
+            views = _shape_views(diag, confirmation, test, gmap, params, options, report, test_content)
             written = write_report(json_safe(rep), figures, report / "report.html", links=views)
         except OSError as err:
             fail(f"cannot write the report to {report}: {err}")
@@ -261,7 +261,7 @@ def diagnose(
     check_plots(report)
     if not (noise_freq > 0 and noise_shape > 0 and noise_damping > 0):
         fail("--noise-freq, --noise-shape and --noise-damping must be positive (percent)")
-    model, test, _, params, gmap = load_inputs(model_path, test_path, params_path, solver,
+    model, test, _, params, gmap, content = load_inputs(model_path, test_path, params_path, solver,
                                                Geometry(map_method, max_distance, test_units, align),
                                                allow_unsupported)
     change = None
@@ -272,7 +272,7 @@ def diagnose(
     diagnosis(model, test, params, model_name=model_path.name, test_name=test_path.name, json_out=json_out,
               report=report, frf_path=frf_path, options=options,
               reference=None if change is None else {"file": reference_path.name, "modes": change}, gmap=gmap,
-              test_path=test_path)
+              test_content=content)
 
 
 def _relative(model, test, reference_path: Path, solver: str, gmap):

@@ -7,11 +7,7 @@ from typing import Annotated
 
 import typer
 
-from ._common import PlotsOut, check_plots, echoed_warnings, fail, read_dataset, write_json
-
-DofMapOpt = Annotated[Path | None, typer.Option(
-    "--dof-map", metavar="CSV", exists=True, dir_okay=False,
-    help="channel → DoF table (columns channel,node,direction) for records without DoFs (node 0, direction 0)")]
+from ._common import DofMapOpt, PlotsOut, check_plots, echoed_warnings, fail, read_dataset, write_json
 
 
 def frf(

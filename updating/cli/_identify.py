@@ -8,8 +8,7 @@ from typing import Annotated
 
 import typer
 
-from ._common import check_plots, echoed_warnings, fail, read_dataset, write_json
-from ._frf import DofMapOpt
+from ._common import DofMapOpt, check_plots, echoed_warnings, fail, read_dataset, write_json
 
 
 def identify(

@@ -151,7 +151,7 @@ def update(
     from .._solve import update as run_update
 
     check_plots(plots)
-    model, test, _, params, gmap = load_inputs(model_path, test_path, params_path, solver,
+    model, test, _, params, gmap, _ = load_inputs(model_path, test_path, params_path, solver,
                                                Geometry(map_method, max_distance, test_units, align),
                                                allow_unsupported)
     last = {}
