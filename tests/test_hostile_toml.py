@@ -284,18 +284,33 @@ def _toml(value) -> str:
     return "{" + ", ".join(f"{_toml(k)} = {_toml(v)}" for k, v in value.items()) + "}"
 
 
+def _write_with(path, good: dict, place: tuple, value):
+    """``good`` as a TOML file with ``value`` at ``place`` (a path of keys and indices)."""
+    data = json.loads(json.dumps(good))
+    *parents, last = place
+    target = data
+    for key in parents:
+        target = target[key]
+    target[last] = value
+    path.write_text("".join(f"{k} = {_toml(v)}\n" for k, v in data.items()))
+    return path
+
+
+def _values(words: list[str], keys: list[str]):
+    """Random TOML values: integers (int64 and small), floats (nan, inf), bools, short
+    strings, ``words``, and arrays and inline tables (keys from ``keys``) of them."""
+    scalars = st.one_of(st.integers(-(2 ** 63), 2 ** 63 - 1), st.integers(-3, 30), st.floats(), st.booleans(),
+                        st.text(st.characters(exclude_categories=("Cs",)), max_size=6), st.sampled_from(words))
+    return st.recursive(scalars, lambda inner: st.one_of(
+        st.lists(inner, max_size=3), st.dictionaries(st.sampled_from(keys), inner, max_size=2)), max_leaves=6)
+
+
 @pytest.mark.skipif(hypothesis is None, reason="needs hypothesis (pip install jaxfem[test])")
 def test_schema_property_valid_or_value_error_naming_the_key(tmp_path_factory):
     """A random TOML value in any key of a valid file: either a valid ParameterSet or a
     ValueError naming the file and the key; never another exception."""
     folder = tmp_path_factory.mktemp("hostile")
-    scalars = st.one_of(
-        st.integers(-(2 ** 63), 2 ** 63 - 1), st.integers(-3, 30), st.floats(), st.booleans(),
-        st.text(st.characters(exclude_categories=("Cs",)), max_size=6),
-        st.sampled_from(list(KINDS) + ["auto", "combined", "gauss-newton", "dense"]))
-    values = st.recursive(scalars, lambda inner: st.one_of(
-        st.lists(inner, max_size=3), st.dictionaries(st.sampled_from(["a", "pids", "name"]), inner, max_size=2)),
-        max_leaves=6)
+    values = _values(list(KINDS) + ["auto", "combined", "gauss-newton", "dense"], ["a", "pids", "name"])
     places = ([("parameter",), ("options",)] + [("parameter", i, k) for i in range(2) for k in PARAMETER_KEYS]
               + [("options", k) for k in GOOD["options"]])
 
@@ -303,15 +318,7 @@ def test_schema_property_valid_or_value_error_naming_the_key(tmp_path_factory):
                          suppress_health_check=[hypothesis.HealthCheck.too_slow])
     @hypothesis.given(place=st.sampled_from(places), value=values)
     def check(place, value):
-        data = json.loads(json.dumps(GOOD))
-        if len(place) == 1:
-            data[place[0]] = value
-        elif len(place) == 2:
-            data["options"][place[1]] = value
-        else:
-            data["parameter"][place[1]][place[2]] = value
-        path = folder / "fuzz.toml"
-        path.write_text("".join(f"{k} = {_toml(v)}\n" for k, v in data.items()))
+        path = _write_with(folder / "fuzz.toml", GOOD, place, value)
         try:
             pset = ParameterSet.from_toml(path)
         except ValueError as err:
@@ -364,25 +371,14 @@ def test_study_schema_property_valid_or_value_error_naming_the_key(tmp_path_fact
     from updating._study import Study
 
     folder = tmp_path_factory.mktemp("study")
-    scalars = st.one_of(st.integers(-(2 ** 63), 2 ** 63 - 1), st.integers(-3, 30), st.floats(), st.booleans(),
-                        st.text(st.characters(exclude_categories=("Cs",)), max_size=6),
-                        st.sampled_from(["tree", "sparse", "relative"]))
-    values = st.recursive(scalars, lambda inner: st.one_of(
-        st.lists(inner, max_size=3), st.dictionaries(st.sampled_from(["relative", "samples"]), inner, max_size=2)),
-        max_leaves=6)
+    values = _values(["tree", "sparse", "relative"], ["relative", "samples"])
     places = [("study",), ("errors",)] + [(table, k) for table in GOOD_STUDY for k in GOOD_STUDY[table]]
 
     @hypothesis.settings(max_examples=150, deadline=None, database=None,
                          suppress_health_check=[hypothesis.HealthCheck.too_slow])
     @hypothesis.given(place=st.sampled_from(places), value=values)
     def check(place, value):
-        data = json.loads(json.dumps(GOOD_STUDY))
-        if len(place) == 1:
-            data[place[0]] = value
-        else:
-            data[place[0]][place[1]] = value
-        path = folder / "fuzz.toml"
-        path.write_text("".join(f"{k} = {_toml(v)}\n" for k, v in data.items()))
+        path = _write_with(folder / "fuzz.toml", GOOD_STUDY, place, value)
         try:
             study = Study.from_toml(path)
         except ValueError as err:
