@@ -345,7 +345,7 @@ GOOD_STUDY = {"study": {"model": "tree", "sensors": "tree", "error_pids": [2, 4]
     ("errors = [1]", "errors: expected a table [errors], got [1]"),  # was an uncaught AttributeError
     ("[errors]\nrelative = [1.5]", "errors.relative: expected a non-empty array of fractions in [0, 1)"),
     ("[errors]\nthermal = [0.1]", "errors.thermal: unknown error category; known: relative, absolute, frequency"),
-    ('[study]\nmodelling_error = "a"', "study.modelling_error: expected an integer ≥ 1 and ≤ 3, got 'a'"),
+    ('[study]\nmodelling_error = "a"', "study.modelling_error: expected a model of Table 4.6: 1, 2, 3, got 'a'"),
     ("[study]\nmodelling_error = 1\nerror_pids = [3]", "study.modelling_error: give modelling_error or "
                                                        "error_pids/error_alpha, not both"),
     ("[study]\nsampels = 3", "study.sampels: unknown key (did you mean 'samples'?)"),

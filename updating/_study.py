@@ -148,7 +148,7 @@ class Study:
                 if {"error_pids", "error_alpha"} & set(s):
                     raise FieldError("study.modelling_error", "give modelling_error or error_pids/error_alpha, "
                                                               "not both")
-                number = _checked("study.modelling_error", _integer(1, len(TABLE_4_6)), s.pop("modelling_error"))
+                number = _checked("study.modelling_error", _table_4_6, s.pop("modelling_error"))
                 s["error_pids"], s["error_alpha"] = TABLE_4_6[number]
             if "parameter" in data:
                 parameters = ParameterSet.from_dict(data, where)
@@ -162,6 +162,12 @@ class Study:
                        parameters=parameters, errors=tuple(data.get("errors", TABLE_4_7).items()), **s)
         except FieldError as err:
             raise ValueError(f"{where}: {err}") from None
+
+
+def _table_4_6(v):
+    if not (isinstance(v, int) and not isinstance(v, bool) and v in TABLE_4_6):
+        raise _Expected(f"a model of Table 4.6: {', '.join(map(str, TABLE_4_6))}")
+    return v
 
 
 def _fractions(v):
