@@ -364,7 +364,15 @@ _IDS = ("node_nums", "def_cs", "disp_cs", "mode_n", "rsp_node", "ref_node", "cs_
 
 def _check_record(record: dict, where: str) -> None:
     """What pyuff parsed from a record is whole: its per-node arrays equally long (a
-    mangled fixed-format line gives ragged ones) and its ids integers in 0..2³¹−1."""
+    mangled fixed-format line gives ragged ones), its ids integers in 0..2³¹−1, and a
+    dataset 58 of a defined ordinate type (2, 4 real; 5, 6 complex) with its data."""
+    if int(record.get("type", 0)) == 58:
+        kind = record.get("ord_data_type")
+        if kind not in (2, 4, 5, 6):
+            raise ValueError(f"{where}: record 7's ordinate data type is {kind!r}; UFF 58 defines 2, 4 (real) "
+                             "and 5, 6 (complex): its data cannot be read")
+        if "x" not in record or "data" not in record:
+            raise ValueError(f"{where}: no data values were parsed from it")
     lengths = {key: len(np.atleast_1d(record[key])) for key in _ARRAYS.get(int(record.get("type", 0)), ())
                if key in record}
     if len(set(lengths.values())) > 1:

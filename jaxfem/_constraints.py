@@ -33,15 +33,14 @@ def _selected(bulk: BulkData, names: tuple[str, ...], chosen: int | None, argume
     sets = sorted({c["SID"] for c in cards})
     kind = names[0]
     if chosen is None and len(sets) > 1:
-        if kind == "SPC":
-            raise BulkDataError(f"{bulk.source}: several SPC sets {sets}; choose one with spc_set")
         first: dict[int, Card] = {}
         for card in sorted(cards, key=lambda c: c.line):
             first.setdefault(card["SID"], card)
-        where = ", ".join(f"{kind} {s} at {first[s].file}:{first[s].line}" for s in sets)
-        raise first[sets[1]].error("SID", f"several {kind} sets {sets} ({where}); choose one with {argument}")
+        where = ", ".join(f"{first[s].name} {s} at {first[s].file}:{first[s].line}" for s in sets)
+        raise first[sets[1]].error("SID", f"several {kind} sets {sets} ({where}); choose one with {argument} "
+                                          f"(--{argument.replace('_', '-')} on the command line)")
     if chosen is not None and chosen not in sets:
-        raise BulkDataError(f"{bulk.source}: {kind} set {chosen} is not in the file (sets: {sets})")
+        raise BulkDataError(f"{bulk.source}: {kind} set {chosen} ({argument}) is not in the file (sets: {sets})")
     return chosen if chosen is not None else (sets[0] if sets else None)
 
 

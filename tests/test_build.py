@@ -256,8 +256,9 @@ FRAME = (DATA / "frame_free.bdf").read_text()
 
 def test_spc_set_selection():
     two_sets = FRAME.replace("ENDDATA", "SPC1,2,123,3\nENDDATA")
-    _fails(two_sets, "m.bdf: several SPC sets [1, 2]; choose one with spc_set")
-    _fails(two_sets, "m.bdf: SPC set 3 is not in the file (sets: [1, 2])", spc_set=3)
+    _fails(two_sets, "m.bdf:61: SPC1 2 field 2 (SID): several SPC sets [1, 2] (SPC1 1 at m.bdf:59, SPC1 2 at "
+                     "m.bdf:61); choose one with spc_set (--spc-set on the command line)")  # was not located
+    _fails(two_sets, "m.bdf: SPC set 3 (spc_set) is not in the file (sets: [1, 2])", spc_set=3)
     labels = {tuple(x) for x in _build(two_sets, spc_set=2).dofs.labels}
     assert (1, 1) in labels and (3, 1) not in labels and (3, 4) in labels and (10, 4) not in labels
 

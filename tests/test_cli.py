@@ -56,3 +56,24 @@ def test_unsupported_structural_cards_stop_unless_allowed(tmp_path):
     result = runner.invoke(app, ["modes", str(deck), "-n", "3", "--allow-unsupported"])
     assert result.exit_code == 0, result.output
     assert "CHEXA" in result.output  # the warning names what was left out
+
+
+def test_a_deck_with_two_spc_sets_needs_spc_set(tmp_path):
+    """Two SPC sets (say free and clamped in one deck): exit 2 naming both with their lines
+    and the option; ``--spc-set`` picks one, as case control ``SPC = SID`` would."""
+    deck = tmp_path / "two.bdf"
+    deck.write_text(Path("tests/data/frame_free.bdf").read_text().replace("ENDDATA", "SPC1,2,123456,3,4\nENDDATA"))
+    result = runner.invoke(app, ["modes", str(deck), "-n", "3"])
+    assert result.exit_code == 2 and "Traceback" not in result.output
+    assert (f"{deck}:61: SPC1 2 field 2 (SID): several SPC sets [1, 2] (SPC1 1 at {deck}:59, SPC1 2 at {deck}:61); "
+            "choose one with spc_set (--spc-set on the command line)") in result.output.replace("\n", ""), result.output
+    first = {}
+    for sid in (1, 2):
+        out = tmp_path / f"set{sid}.json"
+        result = runner.invoke(app, ["modes", str(deck), "-n", "3", "--spc-set", str(sid), "--json", str(out)])
+        assert result.exit_code == 0, result.output
+        first[sid] = json.loads(out.read_text())["frequencies_hz"][0]
+    model = jaxfem.build_model(read_bdf(deck), spc_set=2)
+    assert first[2] == np.float64(jaxfem.frequencies_hz(jaxfem.modes(model, 3)[0])[0]) and first[2] != first[1]
+    result = runner.invoke(app, ["modes", str(deck), "--spc-set", "7"])
+    assert result.exit_code == 2 and "SPC set 7 (spc_set) is not in the file (sets: [1, 2])" in result.output

@@ -121,6 +121,26 @@ def _frf_file(path, value: float):
     return path
 
 
+def test_an_undefined_ordinate_type_names_the_dataset(tmp_path):
+    """Record 7 of a 58 with ordinate type 7 (one character changed): pyuff parsed no data
+    and read_uff raised KeyError 'x' (found by benchmarks/fuzz_inputs.py, seed 29)."""
+    from identification import FRFData
+
+    rng = np.random.default_rng(1)
+    path = tmp_path / "frf.uff"
+    write_uff(path, frfs=FRFData(np.linspace(1.0, 50.0, 40), rng.normal(size=(40, 1, 1)) + 0j,
+                                 Sensors.from_components([1], [3]), Sensors.from_components([1], [3]), "accelerance"))
+    lines = path.read_text(encoding="latin-1").split("\n")  # a binary 58b: record 7 is in its ASCII header
+    (start, _), = [o for o in _openings(lines) if o[1] == 58]
+    record7 = start + 7  # 0-based index of record 7: delimiter, number line, records 1-6 before it
+    assert lines[record7].split()[:2] == ["6", "40"], lines[record7]
+    lines[record7] = lines[record7].replace("         6", "         7", 1)
+    path.write_text("\n".join(lines), encoding="latin-1")
+    with pytest.raises(ValueError, match=rf"frf.uff: dataset #\d \(type 58, from line {start}\): record 7's "
+                                         r"ordinate data type is 7; UFF 58 defines 2, 4 \(real\) and 5, 6"):
+        read_uff(path)
+
+
 def test_a_truncated_binary_dataset_names_its_line(tmp_path):
     path = _frf_file(tmp_path / "frf.uff", 1.0)
     data = path.read_bytes()

@@ -407,9 +407,9 @@ CONM2,14,4,,1.
          {}),
         ("MPC,1,1,1,1.,2,1,-1.\nMPC,2,3,1,1.,4,1,-1.\n",
          ("m.bdf:10: MPC 2 field 2 (SID): several MPC sets [1, 2] (MPC 1 at m.bdf:9, MPC 2 at m.bdf:10); "
-          "choose one with mpc_set",), {}),
-        ("MPC,1,1,1,1.,2,1,-1.\n", ("m.bdf: MPC set 3 is not in the file (sets: [1])",), {"mpc_set": 3}),
-        ("", ("m.bdf: MPC set 1 is not in the file (sets: [])",), {"mpc_set": 1}),
+          "choose one with mpc_set (--mpc-set on the command line)",), {}),
+        ("MPC,1,1,1,1.,2,1,-1.\n", ("m.bdf: MPC set 3 (mpc_set) is not in the file (sets: [1])",), {"mpc_set": 3}),
+        ("", ("m.bdf: MPC set 1 (mpc_set) is not in the file (sets: [])",), {"mpc_set": 1}),
     ],
 )
 def test_build_errors(cards, parts, kwargs):

@@ -58,19 +58,21 @@ def check_plots(plots: Path | None) -> None:
         fail(f"--plots {plots} exists and is not a directory")
 
 
-def load_model(path: Path, content: dict | None = None, allow_unsupported: bool = False):
+def load_model(path: Path, content: dict | None = None, allow_unsupported: bool = False,
+               sets: tuple[int | None, int | None] = (None, None)):
     """The model of a bulk-data file; exit 2 naming the file, line, card and field when it
     cannot be read or built, naming ``--allow-unsupported`` when it holds unsupported
     structural cards; the reader's and builder's warnings on stderr. ``content``: a dict
     to receive the parsed bulk data (``bulk``); ``allow_unsupported``: build without those
-    cards (:func:`jaxfem.build_model`)."""
+    cards; ``sets``: the SPC and MPC set ids to apply (``--spc-set``, ``--mpc-set``; None:
+    the only one in the file) (:func:`jaxfem.build_model`)."""
     import jaxfem
     from jaxfem.io import UnsupportedCardsError, read_bdf
 
     with echoed_warnings():
         try:
             bulk = read_bdf(path)
-            model = jaxfem.build_model(bulk, allow_unsupported=allow_unsupported)
+            model = jaxfem.build_model(bulk, *sets, allow_unsupported=allow_unsupported)
         except UnsupportedCardsError as err:
             fail(f"cannot read model {path}: {err.problem}; --allow-unsupported builds it without them")
         except (ValueError, OSError) as err:
@@ -143,6 +145,12 @@ MaxDistanceOpt = Annotated[float | None, typer.Option(
 DofMapOpt = Annotated[Path | None, typer.Option(
     "--dof-map", metavar="CSV", exists=True, dir_okay=False,
     help="channel → DoF table (columns channel,node,direction) for records without DoFs (node 0, direction 0)")]
+SpcSetOpt = Annotated[int | None, typer.Option(
+    "--spc-set", metavar="SID", help="the SPC/SPC1 set to apply when the bulk data holds several (as case control "
+                                     "SPC = SID; default: the only one)")]
+MpcSetOpt = Annotated[int | None, typer.Option(
+    "--mpc-set", metavar="SID", help="the MPC set to apply when the bulk data holds several (as case control "
+                                     "MPC = SID; default: the only one)")]
 AllowUnsupportedOpt = Annotated[bool, typer.Option(
     "--allow-unsupported", help="build the model without the structural cards jaxfem does not support (elements, "
                                 "properties, materials it cannot read): the structure then lacks them")]
@@ -189,7 +197,8 @@ def check_solver(solver: str | None) -> str:
 
 
 def load_inputs(model_path: Path, test_path: Path, params_path: Path | None = None, solver: str | None = None,
-                geometry: Geometry = Geometry(), allow_unsupported: bool = False):
+                geometry: Geometry = Geometry(), allow_unsupported: bool = False,
+                sets: tuple[int | None, int | None] = (None, None)):
     """Model (with the test nodes mapped onto it, :func:`map_geometry`), real test modes,
     observation matrix, the parameter set (None without a file; ``solver``, from
     ``--solver``, overrides its eigensolver), the :class:`identification.GeometryMap` and
@@ -210,7 +219,7 @@ def load_inputs(model_path: Path, test_path: Path, params_path: Path | None = No
             fail(f"bad parameter file: {err}")
         if solver is not None:
             params = replace(params, options=replace(params.options, eigensolver=solver))
-    model = load_model(model_path, allow_unsupported=allow_unsupported)
+    model = load_model(model_path, allow_unsupported=allow_unsupported, sets=sets)
     content: dict = {}
     test = load_test(test_path, geometry.test_units, content)
     model, test, gmap = map_geometry(model, test, content["nodes"], content["units"], test_path, geometry)

@@ -8,26 +8,9 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from ._common import (
-    JsonOut,
-    ModelArg,
-    PlotsOut,
-    TestArg,
-    check_plots,
-    fail,
-    load_inputs,
-    mode_labels,
-    print_pairing,
-    SolverOpt,
-    check_solver,
-    write_json,
-    AlignOpt,
-    AllowUnsupportedOpt,
-    Geometry,
-    MapOpt,
-    MaxDistanceOpt,
-    TestUnitsOpt,
-)
+from ._common import (AlignOpt, AllowUnsupportedOpt, Geometry, JsonOut, MapOpt, MaxDistanceOpt, ModelArg, MpcSetOpt,
+                      PlotsOut, SolverOpt, SpcSetOpt, TestArg, TestUnitsOpt, check_plots, check_solver, fail,
+                      load_inputs, mode_labels, print_pairing, write_json)
 
 
 def check_thresholds(n: int | None, min_mac: float, max_freq_dev: float, max_automac: float | None = None) -> None:
@@ -63,6 +46,8 @@ def correlate(
     test_units: TestUnitsOpt = None,
     align: AlignOpt = False,
     allow_unsupported: AllowUnsupportedOpt = False,
+    spc_set: SpcSetOpt = None,
+    mpc_set: MpcSetOpt = None,
     max_automac: Annotated[float, typer.Option(
         "--max-automac", help="warn of spatial aliasing when two test modes have an AutoMAC above this")] = 0.9,
 ) -> None:
@@ -77,7 +62,7 @@ def correlate(
     check_thresholds(n, min_mac, max_freq_dev, max_automac)
     model, test, C, _, gmap, content = load_inputs(model_path, test_path,
                                           geometry=Geometry(map_method, max_distance, test_units, align),
-                                          allow_unsupported=allow_unsupported)
+                                          allow_unsupported=allow_unsupported, sets=(spc_set, mpc_set))
     ne = test.n_modes
     n_model = n_model_modes(model, ne, n)
     try:

@@ -8,8 +8,9 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from ._common import (AlignOpt, AllowUnsupportedOpt, Geometry, MapOpt, MaxDistanceOpt, ModelArg, SolverOpt, TestArg, TestUnitsOpt,
-                      check_plots, check_solver, fail, frf_prediction, load_inputs, load_test, mode_labels, write_json)
+from ._common import (AlignOpt, AllowUnsupportedOpt, Geometry, MapOpt, MaxDistanceOpt, ModelArg, MpcSetOpt,
+                      SolverOpt, SpcSetOpt, TestArg, TestUnitsOpt, check_plots, check_solver, fail, frf_prediction,
+                      load_inputs, load_test, mode_labels, write_json)
 
 
 def _fmt(x, spec: str) -> str:
@@ -244,6 +245,8 @@ def diagnose(
     test_units: TestUnitsOpt = None,
     align: AlignOpt = False,
     allow_unsupported: AllowUnsupportedOpt = False,
+    spc_set: SpcSetOpt = None,
+    mpc_set: MpcSetOpt = None,
     reference_path: Annotated[Path | None, typer.Option(
         "--reference", metavar="HEALTHY.uff", exists=True, dir_okay=False,
         help="modes of a reference state (e.g. before the damage) at the same sensors: diagnose the change "
@@ -263,7 +266,7 @@ def diagnose(
         fail("--noise-freq, --noise-shape and --noise-damping must be positive (percent)")
     model, test, _, params, gmap, content = load_inputs(model_path, test_path, params_path, solver,
                                                Geometry(map_method, max_distance, test_units, align),
-                                               allow_unsupported)
+                                               allow_unsupported, (spc_set, mpc_set))
     change = None
     if reference_path is not None:
         test, change = _relative(model, test, reference_path, check_solver(solver) or "auto", gmap)

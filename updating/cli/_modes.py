@@ -7,12 +7,13 @@ from typing import Annotated
 
 import typer
 
-from ._common import AllowUnsupportedOpt, SolverOpt, check_solver, fail, load_model, write_json
+from ._common import AllowUnsupportedOpt, MpcSetOpt, SolverOpt, SpcSetOpt, check_solver, fail, load_model, write_json
 
 LARGE = 5000  # DoFs above which the dense solve's time and memory are announced
 
 
-def _modes_table(path: Path, n_modes: int, solver: str = "auto", allow_unsupported: bool = False) -> dict:
+def _modes_table(path: Path, n_modes: int, solver: str = "auto", allow_unsupported: bool = False,
+                 sets: tuple[int | None, int | None] = (None, None)) -> dict:
     """The lowest ``n_modes`` (at least 1) of the model; exit 2 with one line for a file
     that cannot be read or built, a model without mass, or a failed eigensolve."""
     import time
@@ -22,7 +23,7 @@ def _modes_table(path: Path, n_modes: int, solver: str = "auto", allow_unsupport
     if n_modes < 1:
         fail(f"-n/--n-modes must be at least 1, got {n_modes}")
     content: dict = {}
-    model = load_model(path, content, allow_unsupported)
+    model = load_model(path, content, allow_unsupported, sets)
     sparse = jaxfem.use_sparse(model, solver)
     n_mass = model.n_dof - len(model.dofs.massless)
     if n_mass < 1:
@@ -75,9 +76,11 @@ def modes(
     json_out: Annotated[Path | None, typer.Option("--json", dir_okay=False, help="write results as JSON")] = None,
     solver: SolverOpt = None,
     allow_unsupported: AllowUnsupportedOpt = False,
+    spc_set: SpcSetOpt = None,
+    mpc_set: MpcSetOpt = None,
 ) -> None:
     """Natural frequencies of a bulk-data model."""
-    result = _modes_table(model, n, check_solver(solver), allow_unsupported)
+    result = _modes_table(model, n, check_solver(solver), allow_unsupported, (spc_set, mpc_set))
     _print_table(result)
     if json_out:
         write_json(json_out, result)

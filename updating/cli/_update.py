@@ -9,26 +9,9 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from ._common import (
-    JsonOut,
-    ModelArg,
-    PlotsOut,
-    TestArg,
-    check_plots,
-    echoed_warnings,
-    fail,
-    frf_prediction,
-    load_inputs,
-    AlignOpt,
-    AllowUnsupportedOpt,
-    Geometry,
-    MapOpt,
-    MaxDistanceOpt,
-    TestUnitsOpt,
-    mode_labels,
-    SolverOpt,
-    write_json,
-)
+from ._common import (AlignOpt, AllowUnsupportedOpt, Geometry, JsonOut, MapOpt, MaxDistanceOpt, ModelArg, MpcSetOpt,
+                      PlotsOut, SolverOpt, SpcSetOpt, TestArg, TestUnitsOpt, check_plots, echoed_warnings, fail,
+                      frf_prediction, load_inputs, mode_labels, write_json)
 
 
 def _add_effects(model, test, params, specs: list[str], progress):
@@ -137,6 +120,8 @@ def update(
     test_units: TestUnitsOpt = None,
     align: AlignOpt = False,
     allow_unsupported: AllowUnsupportedOpt = False,
+    spc_set: SpcSetOpt = None,
+    mpc_set: MpcSetOpt = None,
 ) -> None:
     """Update model parameters so that the model modes match the test modes.
 
@@ -153,7 +138,7 @@ def update(
     check_plots(plots)
     model, test, _, params, gmap, _ = load_inputs(model_path, test_path, params_path, solver,
                                                Geometry(map_method, max_distance, test_units, align),
-                                               allow_unsupported)
+                                               allow_unsupported, (spc_set, mpc_set))
     last = {}
 
     def progress(it) -> None:
