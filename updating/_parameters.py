@@ -9,7 +9,6 @@ instead: ``a`` and the ply angle ``theta`` (radians, so bounded below by −1 ra
 
 from __future__ import annotations
 
-import difflib
 import tomllib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -24,6 +23,9 @@ from jaxtyping import Array, Float
 import jaxfem
 from jaxfem import Model
 from jaxfem._model import MAT1, MAT2, MAT8
+
+from . import _schema as schema
+from ._schema import FieldError as FieldError
 
 KINDS = ("stiffness", "mass", "E", "G", "rho", "A", "I1", "I2", "J", "k", "m", "a",
          "membrane", "bending", "transverse_shear", "E1", "E2", "G12", "G1Z", "G2Z", "NU12", "t", "nsm", "theta")
@@ -45,131 +47,24 @@ _MATERIAL_COLUMNS = (("beam_sections", "material"), ("rod_sections", "material")
                      ("shell_sections", "materials"), ("shell_sections", "ply_material"))
 
 
-class FieldError(ValueError):
-    """A schema error on one key of a parameter or of the options: ``key`` (as written in
-    the file, e.g. ``pids``, ``max_iterations``) and the message ``text`` (what was
-    expected, what was given); ``owner`` (``parameter 'cols'``, ``options``) starts the
-    message. A file's parser rewrites it with the file and the table (``parameter[2]``)."""
-
-    def __init__(self, key: str, text: str, owner: str = ""):
-        super().__init__(f"{owner}: {key}: {text}" if owner else f"{key}: {text}")
-        self.key, self.text = key, text
-
-
-class _Expected(Exception):
-    """Raised by a validator: ``str(self)`` is what the value should have been."""
-
-
-def _show(value) -> str:
-    text = repr(value)
-    return text if len(text) <= 60 else text[:57] + "..."
-
-
-def _is_int(v) -> bool:
-    return isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
-
-
-def _finite(v) -> float | None:
-    """``v`` as a finite float, or None (not a number, a bool, NaN, ±inf, an int too big)."""
-    if not isinstance(v, (int, float, np.integer, np.floating)) or isinstance(v, (bool, np.bool_)):
-        return None
-    try:
-        f = float(v)
-    except OverflowError:
-        return None
-    return f if np.isfinite(f) else None
-
-
-def _integer(low: int, high: int | None = None):
-    what = f"an integer ≥ {low}" + (f" and ≤ {high}" if high is not None else "")
-
-    def check(v):
-        if not _is_int(v) or v < low or (high is not None and v > high):
-            raise _Expected(what)
-        return int(v)
-    return check
-
-
-def _number(low: float, *, strict: bool, high: float | None = None):
-    what = f"a finite number {'>' if strict else '≥'} {low:g}" + (f" and ≤ {high:g}" if high is not None else "")
-
-    def check(v):
-        f = _finite(v)
-        if f is None or (f <= low if strict else f < low) or (high is not None and f > high):
-            raise _Expected(what)
-        return f
-    return check
-
-
-def _choice(*options: str):
-    what = " | ".join(repr(o) for o in options)
-
-    def check(v):
-        if not isinstance(v, str) or v not in options:
-            raise _Expected(f"one of {what}")
-        return v
-    return check
-
-
-def _integers(what: str, *, nonempty: bool):
-    """An array of integers ≥ 1 (ids, mode numbers): bools and 1.7 refused, not truncated."""
-    what = f"{'a non-empty' if nonempty else 'an'} array of {what} (integers ≥ 1)"
-
-    def check(v):
-        if not isinstance(v, (list, tuple, np.ndarray)) or (nonempty and not len(v)) \
-                or not all(_is_int(x) and x >= 1 for x in v):
-            raise _Expected(what)
-        return tuple(int(x) for x in v)
-    return check
-
-
-def _name(v):
-    if not isinstance(v, str) or not v.strip():
-        raise _Expected("a non-empty string")
-    return v
-
-
-def _bounds(v, floor: str = "≥"):
-    """Two finite numbers, ``floor``: ``≥`` −1 ≤ lower, ``>`` −1 < lower (α ≤ −1 would be a
-    zero or negative value), lower < upper."""
-    if not isinstance(v, (list, tuple, np.ndarray)) or len(v) != 2:
-        raise _Expected("[lower, upper]: two numbers")
-    lower, upper = _finite(v[0]), _finite(v[1])
-    if lower is None or upper is None:
-        raise _Expected("[lower, upper]: two finite numbers")
-    if lower >= upper:
-        raise _Expected("[lower, upper] with lower < upper" + (" (reversed?)" if lower > upper else ""))
-    if lower < -1.0 or (floor == ">" and lower == -1.0):
-        raise _Expected(f"lower {floor} -1 (α = -1 is a value of 0, below it a negative one)")
-    return (lower, upper)
-
-
 def _weight(v):
     if isinstance(v, str) and v == "auto":
         return v
     try:
-        return _number(0.0, strict=True)(v)
-    except _Expected:
-        raise _Expected("\"auto\" or a finite number > 0") from None
-
-
-def _checked(key: str, check, value):
-    """``check(value)``, or a :class:`FieldError` naming ``key``, the expectation and the value."""
-    try:
-        return check(value)
-    except _Expected as err:
-        raise FieldError(key, f"expected {err}, got {_show(value)}") from None
+        return schema.number(0.0, strict=True)(v)
+    except schema.Expected:
+        raise schema.Expected("\"auto\" or a finite number > 0") from None
 
 
 def _file_bounds(v):
     """In a parameter file, lower > −1 strictly (a bound at α = −1, a value of 0, is a slip)."""
-    return _bounds(v, ">")
+    return schema.bounds(v, ">")
 
 
 _PARAMETER_SCHEMA = {
-    "name": _name, "kind": _choice(*KINDS), "pids": _integers("property ids", nonempty=False),
-    "eids": _integers("element ids", nonempty=False), "nodes": _integers("grid ids", nonempty=False),
-    "bounds": _bounds,
+    "name": schema.name, "kind": schema.choice(*KINDS), "pids": schema.integers("property ids", nonempty=False),
+    "eids": schema.integers("element ids", nonempty=False), "nodes": schema.integers("grid ids", nonempty=False),
+    "bounds": schema.bounds,
 }
 
 
@@ -210,7 +105,7 @@ class Parameter:
         owner = f"parameter {self.name!r}"
         for key, check in _PARAMETER_SCHEMA.items():
             try:
-                object.__setattr__(self, key, _checked(key, check, getattr(self, key)))
+                object.__setattr__(self, key, schema.checked(key, check, getattr(self, key)))
             except FieldError as err:
                 raise FieldError(err.key, err.text, owner) from None
 
@@ -235,18 +130,18 @@ class Parameter:
 MAX_ITERATIONS = 100_000  # the loop keeps one history row per accepted iteration
 
 _OPTIONS_SCHEMA = {
-    "active_modes": _integers("test mode numbers", nonempty=True),
-    "passive_modes": _integers("test mode numbers", nonempty=False),
-    "residual": _choice("eigenvalue", "eigenvector", "combined"),
+    "active_modes": schema.integers("test mode numbers", nonempty=True),
+    "passive_modes": schema.integers("test mode numbers", nonempty=False),
+    "residual": schema.choice("eigenvalue", "eigenvector", "combined"),
     "eigenvalue_weight": _weight,
-    "regularisation": _number(0.0, strict=False),
-    "solver": _choice("levenberg-marquardt", "gauss-newton"),
-    "max_iterations": _integer(1, MAX_ITERATIONS),
-    "tolerance": _number(0.0, strict=True),
-    "min_mac": _number(0.0, strict=False, high=1.0),
-    "max_freq_dev": _number(0.0, strict=True),
-    "n_model_modes": _integer(1),
-    "eigensolver": _choice("auto", "dense", "sparse"),
+    "regularisation": schema.number(0.0, strict=False),
+    "solver": schema.choice("levenberg-marquardt", "gauss-newton"),
+    "max_iterations": schema.integer(1, MAX_ITERATIONS),
+    "tolerance": schema.number(0.0, strict=True),
+    "min_mac": schema.number(0.0, strict=False, high=1.0),
+    "max_freq_dev": schema.number(0.0, strict=True),
+    "n_model_modes": schema.integer(1),
+    "eigensolver": schema.choice("auto", "dense", "sparse"),
 }
 _OPTIONAL = {"active_modes", "n_model_modes"}  # None: the default rule
 
@@ -285,7 +180,7 @@ class Options:
             value = getattr(self, key)
             if not (value is None and key in _OPTIONAL):
                 try:
-                    object.__setattr__(self, key, _checked(key, check, value))
+                    object.__setattr__(self, key, schema.checked(key, check, value))
                 except FieldError as err:
                     raise FieldError(err.key, err.text, "options") from None
         both = sorted(set(self.active_modes or ()) & set(self.passive_modes))
@@ -297,21 +192,12 @@ class Options:
     def from_dict(cls, table, where: str) -> Options:
         """From the parsed ``[options]`` table; errors name ``where`` and ``options.KEY``."""
         if not isinstance(table, dict):
-            raise ValueError(f"{where}: options: expected a table [options], got {_show(table)}")
-        _refuse_unknown(table, cls.__dataclass_fields__, where, "options.")
+            raise ValueError(f"{where}: options: expected a table [options], got {schema.show(table)}")
+        schema.refuse_unknown(table, cls.__dataclass_fields__, where, "options.")
         try:
             return cls(**table)
         except FieldError as err:
             raise ValueError(f"{where}: options.{err.key}: {err.text}") from None
-
-
-def _refuse_unknown(table: dict, known, where: str, prefix: str) -> None:
-    """Unknown keys are errors (a typo such as ``bound`` would otherwise be ignored)."""
-    for key in table:
-        if key not in known:
-            near = difflib.get_close_matches(str(key), list(known), n=1)
-            hint = f" (did you mean {near[0]!r}?)" if near else ""
-            raise ValueError(f"{where}: {prefix}{key}: unknown key{hint}; known keys: {', '.join(known)}")
 
 
 @dataclass(frozen=True)
@@ -343,7 +229,7 @@ class ParameterSet:
             raise ValueError(f"{path}: not UTF-8 text: {err}") from None
         except tomllib.TOMLDecodeError as err:
             raise ValueError(f"{path}: {err}") from None
-        _refuse_unknown(data, ("parameter", "options"), str(path), "")
+        schema.refuse_unknown(data, ("parameter", "options"), str(path), "")
         return cls.from_dict(data, str(path))
 
     @classmethod
@@ -358,22 +244,22 @@ class ParameterSet:
         entries = data.get("parameter", [])
         if not isinstance(entries, list):
             raise ValueError(f"{where}: parameter: expected [[parameter]] tables (an array of tables), "
-                             f"got {_show(entries)}")
+                             f"got {schema.show(entries)}")
         if not entries:
             raise ValueError(f"{where}: no [[parameter]] declared")
         params, first = [], {}
         for i, entry in enumerate(entries, 1):
             key = f"parameter[{i}]"
             if not isinstance(entry, dict):
-                raise ValueError(f"{where}: {key}: expected a table ([[parameter]]), got {_show(entry)}")
-            _refuse_unknown(entry, _PARAMETER_SCHEMA, where, key + ".")
+                raise ValueError(f"{where}: {key}: expected a table ([[parameter]]), got {schema.show(entry)}")
+            schema.refuse_unknown(entry, _PARAMETER_SCHEMA, where, key + ".")
             for required in ("name", "kind"):
                 if required not in entry:
                     raise ValueError(f"{where}: {key}.{required}: required (keys: name, kind, and pids, eids or nodes)")
             label = f" (parameter {entry['name']!r})" if isinstance(entry["name"], str) else ""
             try:
                 if "bounds" in entry:
-                    _checked("bounds", _file_bounds, entry["bounds"])
+                    schema.checked("bounds", _file_bounds, entry["bounds"])
                 params.append(Parameter(**entry))
             except FieldError as err:
                 raise ValueError(f"{where}: {key}.{err.key}: {err.text}{label}") from None

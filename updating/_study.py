@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 import tomllib
 
-from ._parameters import (FieldError, Options, Parameter, ParameterSet, _checked, _choice, _Expected, _finite,
-                          _integer, _integers, _name, _number, _refuse_unknown, _show)
+from . import _schema as schema
+from ._parameters import Options, Parameter, ParameterSet
 
 CATEGORIES = ("relative", "absolute", "frequency")
 TABLE_4_7 = {"relative": (0.01, 0.02, 0.05, 0.10, 0.20),
@@ -66,17 +66,17 @@ class Study:
 
     def __post_init__(self):
         """The one check of the TOML file and of Python callers: each value against
-        ``_STUDY_SCHEMA`` (a :class:`FieldError` naming ``study.KEY`` or ``errors.CATEGORY``)."""
+        ``_STUDY_SCHEMA`` (a :class:`schema.FieldError` naming ``study.KEY`` or ``errors.CATEGORY``)."""
         for key, check in _STUDY_SCHEMA.items():
-            object.__setattr__(self, key, _checked(f"study.{key}", check, getattr(self, key)))
+            object.__setattr__(self, key, schema.checked(f"study.{key}", check, getattr(self, key)))
         if not isinstance(self.errors, (tuple, list)) or not self.errors:
-            raise FieldError("errors", f"expected at least one category of {', '.join(CATEGORIES)}, got "
-                                       f"{_show(self.errors)}")
+            raise schema.FieldError("errors", f"expected at least one category of {', '.join(CATEGORIES)}, "
+                                              f"got {schema.show(self.errors)}")
         errors = []
         for category, magnitudes in self.errors:
             if category not in CATEGORIES:
-                raise FieldError(f"errors.{category}", f"unknown error category; known: {', '.join(CATEGORIES)}")
-            errors.append((category, _checked(f"errors.{category}", _fractions, magnitudes)))
+                raise schema.FieldError(f"errors.{category}", f"unknown error category; known: {', '.join(CATEGORIES)}")
+            errors.append((category, schema.checked(f"errors.{category}", _fractions, magnitudes)))
         object.__setattr__(self, "errors", tuple(errors))
 
     @property
@@ -136,19 +136,20 @@ class Study:
     def from_dict(cls, data: dict, where: str = "study", base: Path = Path(".")) -> Study:
         """From the parsed TOML; every key checked before anything is read or run,
         errors naming ``where`` and the key (``study.samples``, ``errors.relative``)."""
-        _refuse_unknown(data, ("study", "errors", "parameter", "options"), where, "")
+        schema.refuse_unknown(data, ("study", "errors", "parameter", "options"), where, "")
         for table in ("study", "errors"):
             if not isinstance(data.get(table, {}), dict):
-                raise ValueError(f"{where}: {table}: expected a table [{table}], got {_show(data[table])}")
+                raise ValueError(f"{where}: {table}: expected a table [{table}], got {schema.show(data[table])}")
         s = dict(data.get("study", {}))
-        _refuse_unknown(s, ("model", "sensors", "modelling_error", *_STUDY_SCHEMA), where, "study.")
+        schema.refuse_unknown(s, ("model", "sensors", "modelling_error", *_STUDY_SCHEMA), where, "study.")
         try:
-            files = {key: _checked(f"study.{key}", _name, s.pop(key, "tree")) for key in ("model", "sensors")}
+            files = {key: schema.checked(f"study.{key}", schema.name, s.pop(key, "tree"))
+                     for key in ("model", "sensors")}
             if "modelling_error" in s:
                 if {"error_pids", "error_alpha"} & set(s):
-                    raise FieldError("study.modelling_error", "give modelling_error or error_pids/error_alpha, "
-                                                              "not both")
-                number = _checked("study.modelling_error", _table_4_6, s.pop("modelling_error"))
+                    raise schema.FieldError("study.modelling_error",
+                                            "give modelling_error or error_pids/error_alpha, not both")
+                number = schema.checked("study.modelling_error", _table_4_6, s.pop("modelling_error"))
                 s["error_pids"], s["error_alpha"] = TABLE_4_6[number]
             if "parameter" in data:
                 parameters = ParameterSet.from_dict(data, where)
@@ -158,29 +159,31 @@ class Study:
             return cls(model=Path(str(data_dir / "tree.bdf")) if files["model"] == "tree" else base / files["model"],
                        sensors=(Path(str(data_dir / "tree_sensors.csv")) if files["sensors"] == "tree"
                                 else base / files["sensors"]),
-                       error_pids=s.pop("error_pids", TABLE_4_6[1][0]), error_alpha=s.pop("error_alpha", TABLE_4_6[1][1]),
+                       error_pids=s.pop("error_pids", TABLE_4_6[1][0]),
+                       error_alpha=s.pop("error_alpha", TABLE_4_6[1][1]),
                        parameters=parameters, errors=tuple(data.get("errors", TABLE_4_7).items()), **s)
-        except FieldError as err:
+        except schema.FieldError as err:
             raise ValueError(f"{where}: {err}") from None
 
 
 def _table_4_6(v):
-    if not (isinstance(v, int) and not isinstance(v, bool) and v in TABLE_4_6):
-        raise _Expected(f"a model of Table 4.6: {', '.join(map(str, TABLE_4_6))}")
+    if not (schema.is_int(v) and v in TABLE_4_6):
+        raise schema.Expected(f"a model of Table 4.6: {', '.join(map(str, TABLE_4_6))}")
     return v
 
 
 def _fractions(v):
     if not isinstance(v, (list, tuple, np.ndarray)) or not len(v) \
-            or not all(f is not None and 0 <= f < 1 for f in map(_finite, v)):
-        raise _Expected("a non-empty array of fractions in [0, 1), e.g. 0.05 for 5 %")
+            or not all(f is not None and 0 <= f < 1 for f in map(schema.finite, v)):
+        raise schema.Expected("a non-empty array of fractions in [0, 1), e.g. 0.05 for 5 %")
     return tuple(float(m) for m in v)
 
 
 _STUDY_SCHEMA = {
-    "error_pids": _integers("property ids", nonempty=True), "error_alpha": _number(-1.0, strict=True),
-    "n_modes": _integers("numbers of modes", nonempty=True), "samples": _integer(1), "seed": _integer(0),
-    "chunk_size": _integer(1), "eigensolver": _choice("subspace", "full", "sparse"), "lockstep": _integer(1),
+    "error_pids": schema.integers("property ids", nonempty=True), "error_alpha": schema.number(-1.0, strict=True),
+    "n_modes": schema.integers("numbers of modes", nonempty=True), "samples": schema.integer(1),
+    "seed": schema.integer(0), "chunk_size": schema.integer(1),
+    "eigensolver": schema.choice("subspace", "full", "sparse"), "lockstep": schema.integer(1),
 }
 
 
