@@ -198,10 +198,8 @@ def finalize_dofs(model: Model) -> Model:
     for name, d in (("stiffness", dk), ("mass", dm)):
         bad = np.flatnonzero(~np.isfinite(d))
         if len(bad):
-            where = ", ".join(f"({n}, {c})" for n, c in dofs.labels[bad[:5]].tolist())
-            raise ValueError(f"the {name} of {len(bad)} DoF(s) is not finite, (node, component) {where}"
-                             f"{' …' if len(bad) > 5 else ''}: an overflow in the elements there (check their "
-                             "thickness, offsets, section and material values)")
+            raise ValueError(f"non-finite {name} at {_dof_list(dofs.labels[bad])}: an overflow in the elements "
+                             "there (check their thickness, offsets, section and material values)")
     no_k = np.abs(dk) <= _ZERO * _grid_scale(dk, dofs.labels[:, 0])
     no_m = np.abs(dm) <= _ZERO * _grid_scale(dm, dofs.labels[:, 0])
     drop = no_k & no_m
@@ -228,10 +226,14 @@ def finalize_dofs(model: Model) -> Model:
 def _warn_free_mass(labels: np.ndarray) -> None:
     """A DoF with mass and no stiffness moves freely: its unit vector is a 0 Hz mode."""
     if len(labels):
-        where = ", ".join(f"({n}, {c})" for n, c in labels[:8].tolist())
-        warnings.warn(f"{len(labels)} DoF(s) carry mass but no stiffness, (node, component) {where}"
-                      f"{' …' if len(labels) > 8 else ''}: each moves freely, a 0 Hz mode of its own; connect "
-                      "or constrain them (SPC)", UserWarning, stacklevel=4)
+        warnings.warn(f"{_dof_list(labels)} carry mass but no stiffness: each moves freely, a 0 Hz mode of its "
+                      "own; connect or constrain them (SPC)", UserWarning, stacklevel=4)
+
+
+def _dof_list(labels: np.ndarray, shown: int = 8) -> str:
+    """``3 DoF(s), (node, component) (1, 1), (1, 2), (1, 3)``, the first ``shown`` of them."""
+    where = ", ".join(f"({n}, {c})" for n, c in labels[:shown].tolist())
+    return f"{len(labels)} DoF(s), (node, component) {where}{' …' if len(labels) > shown else ''}"
 
 
 def _sparse_block(a: ElementMatrix, dofs: np.ndarray) -> scipy.sparse.csc_matrix:

@@ -30,8 +30,7 @@ from ._grids import (
 from ._model import Beams, Bushes, Masses, Model, Rods, Springs, require_float64
 from ._sections import _beam_sections, _check_shell_shear, _materials, _rod_sections
 from ._shell_build import _k6rot, _shell_elements
-from .io import BulkData, Card
-from .io._bulkdata import UnsupportedCardsError, _where
+from .io import BulkData, Card, UnsupportedCardsError
 
 
 def build_model(
@@ -148,7 +147,7 @@ def _check_params(params: dict[str, Card]) -> None:
             raise card.error("V1", f"PARAM LGDISP {card['V1']} (large displacements) is not supported; only -1")
         if name in _PARAM_REFUSED:
             raise card.error("N", f"PARAM {name} {_PARAM_REFUSED[name]} and is not supported; remove it")
-        where = _where(card.file, card.line, card.name, name)
+        where = card.where()
         if name in _PARAM_DAMPING:
             warnings.warn(f"{where}: PARAM {name} (damping) ignored: normal modes do not use it", stacklevel=3)
         elif name not in known:

@@ -244,8 +244,9 @@ def _dof_map(bulk: BulkData, grids: _Grids, spc_set: int | None, mpc_set: int | 
         file). ``path`` holds the dependent DoFs being expanded, ``keys[i]`` the field
         followed from ``path[i]`` to ``path[i + 1]``, ``todo[i]`` the terms of ``path[i]``
         not yet looked at."""
-        if known((g, c)) is not None:
-            return known((g, c))
+        done = known((g, c))
+        if done is not None:
+            return done
         path, keys, todo = [(g, c)], [], [iter(dependent[(g, c)][1])]
         on_path = {(g, c): 0}
         while path:

@@ -40,7 +40,6 @@ from ._grids import _by_id, _f64, _Grids, _ints
 from ._model import MAT8, Materials, Shells, ShellSections
 from .elements._shell import shell_frame
 from .io import BulkData, BulkDataError, Card
-from .io._bulkdata import _where
 
 WARP_ERROR = 0.2  # warp |h| / (half the shorter diagonal) above which a quad is refused
 WARP_WARN = 0.05  # ... above which it is reported with a UserWarning
@@ -230,9 +229,8 @@ def _quad_shape(card: Card, xyz: np.ndarray, normal: np.ndarray) -> None:
     if warp > WARP_ERROR:
         raise card.error("G4", f"warped quad: warp {warp:.3g} (|h| / half the shorter diagonal) above {WARP_ERROR}")
     if warp > WARP_WARN:
-        line, number = card.fields.get("G4", (card.line, None))
         warnings.warn(
-            f"{_where(card.file, line, card.name, card.id, number, 'G4')}: warped quad: warp {warp:.3g} "
+            f"{card.where('G4')}: warped quad: warp {warp:.3g} "
             f"(|h| / half the shorter diagonal) above {WARP_WARN}",
             UserWarning,
             stacklevel=5,

@@ -14,7 +14,7 @@ def _build(text: str, **kwargs) -> jaxfem.Model:
     """The models here are constraints and masses without elements: their free masses
     (announced by a warning, tested in test_auto_spc) are not the point."""
     with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", "[0-9]+ DoF\\(s\\) carry mass but no stiffness", UserWarning)
+        warnings.filterwarnings("ignore", ".* carry mass but no stiffness", UserWarning)
         return jaxfem.build_model(read_bdf_text(text, name="m.bdf"), **kwargs)
 
 

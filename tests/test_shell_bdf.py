@@ -205,7 +205,7 @@ def test_model_without_shells():
     assert model.quads.nodes.shape == (0, 4) and model.trias.nodes.shape == (0, 3)
     assert model.quads.t_ratio.shape == (0, 4) and model.trias.t_ratio.shape == (0, 3)
     assert model.shell_sections.ply_material.shape == (2, 4)
-    with pytest.warns(UserWarning, match=r"\(1, 1\), \(1, 2\), \(1, 3\): each moves freely"):
+    with pytest.warns(UserWarning, match=r"\(1, 1\), \(1, 2\), \(1, 3\) carry mass but no stiffness"):
         empty = build_model(read_bdf_text("GRID,1\nCONM2,1,1,,1.\n", name="m.bdf"))
     assert empty.shell_sections.materials.shape == (0, 4) and empty.shell_sections.ply_material.shape == (0, 1)
     assert empty.shell_sections.ply_t.shape == (0, 1) and empty.quads.nodes.shape == (0, 4)

@@ -126,10 +126,14 @@ class Card:
         """The value of the card's first field (EID, PID, MID, ID, SID, CID, PARAM name)."""
         return next(iter(self.values.values()))
 
+    def where(self, key: str | None = None) -> str:
+        """``file:line: NAME id field n (KEY)``: where the card (or its field ``key``) is."""
+        line, number = self.fields.get(key, (self.line, None)) if key is not None else (self.line, None)
+        return _where(self.file, line, self.name, self.id, number, key)
+
     def error(self, key: str, message: str) -> BulkDataError:
         """A :class:`BulkDataError` located at field ``key`` of this card."""
-        line, number = self.fields.get(key, (self.line, None))
-        return BulkDataError(f"{_where(self.file, line, self.name, self.id, number, key)}: {message}")
+        return BulkDataError(f"{self.where(key)}: {message}")
 
 
 @dataclass(frozen=True)
