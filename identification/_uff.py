@@ -199,7 +199,8 @@ def read_trace_lines(path: str | os.PathLike) -> list[tuple[int, int]]:
     return trace_lines(read_records(path, lambda kind: kind == 82)[0], path)
 
 
-def read_records(path: str, wanted: Callable[[int], bool] = lambda kind: True) -> tuple[list[tuple[int, dict]], list[_Block]]:
+def read_records(path: str, wanted: Callable[[int], bool] = lambda kind: True
+                 ) -> tuple[list[tuple[int, dict]], list[_Block]]:
     """``[(dataset number in file, pyuff record), ...]`` of the datasets whose type is
     ``wanted``, and every dataset's :class:`_Block`; the file's split checked against its
     own delimiters (:func:`_blocks`, :func:`_check_split`) and each record checked whole
