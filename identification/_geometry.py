@@ -44,7 +44,7 @@ from jaxfem import Model
 from jaxfem._edit import add_interpolated_grid
 
 from ._data import FRFData, ModalData, Sensors
-from ._uff import LENGTH_UNITS
+from ._uff_units import LENGTH_UNITS
 
 MAP_METHODS = ("auto", "id", "nearest", "interpolate")
 UNIT_FACTORS = (10.0, 100.0, 1000.0, 25.4, 1.0 / 0.0254)  # and inverses: coordinates in other length units

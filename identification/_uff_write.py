@@ -3,7 +3,7 @@
 :func:`write_uff` writes dataset 164 (units), 2411 (nodes), one 55 per mode (normal modes
 for real shapes, complex-eigenvalue modes for complex ones) and one binary 58 per FRF and
 per coherence function, converting from SI with the unit factors and the UFF 58 unit
-exponents of :mod:`identification._uff`, so that :func:`read_uff` reads the file back.
+exponents of :mod:`identification._uff_units`, so that :func:`read_uff` reads the file back.
 """
 
 from __future__ import annotations
@@ -17,7 +17,9 @@ import numpy as np
 import pyuff
 
 from ._data import FRFData, ModalData
-from ._uff import _COHERENCE, _FRF, _FRF_CODES, _UNIT_CODES, _USER_CODE, _frf_factor
+from ._uff_channels import _COHERENCE, _FRF
+from ._uff_records import _FRF_CODES
+from ._uff_units import _UNIT_CODES, _USER_CODE, _frf_factor
 
 
 def write_uff(
