@@ -1,5 +1,11 @@
 """jaxfem: differentiable structural dynamics in JAX (model → K, M → modes → responses)."""
 
+# first: jaxfem.elements (imported by _assembly below) takes these from here
+from ._model import MAT1 as MAT1
+from ._model import MAT2 as MAT2
+from ._model import MAT8 as MAT8
+from ._model import Materials as Materials
+from ._model import ShellSections as ShellSections
 from ._assembly import assemble as assemble
 from ._build import build_model as build_model
 from ._eigen import DEGENERATE_RTOL as DEGENERATE_RTOL
@@ -40,3 +46,24 @@ from ._model import StructuralDamping as StructuralDamping
 from ._structural_damping import damping_matrix as damping_matrix
 from ._structural_damping import element_strain_energies as element_strain_energies
 from ._structural_damping import modal_loss_factors as modal_loss_factors
+from ._assembly import node_transform as node_transform
+from ._eager import compiled_when_eager as compiled_when_eager
+from ._eager import jit_over as jit_over
+from ._edit import add_bush as add_bush
+from ._edit import add_grid as add_grid
+from ._edit import add_ground_springs as add_ground_springs
+from ._edit import add_interpolated_grid as add_interpolated_grid
+from ._edit import add_mass as add_mass
+from ._edit import add_rbe3 as add_rbe3
+from ._edit import reconnect as reconnect
+from ._edit import refresh as refresh
+from ._edit import release as release
+from ._model import Opaque as Opaque
+from ._sparse import SparsePattern as SparsePattern
+from ._sparse import clear_factors as clear_sparse_factors
+from ._sparse import factor as sparse_factor
+from ._sparse import new_factor as new_sparse_factor
+from ._sparse import pattern as sparse_pattern
+from ._sparse import resolve_backend as resolve_sparse_backend
+from ._structural_damping import stiffness_ids as stiffness_ids
+from ._structural_damping import with_k_scale as with_k_scale

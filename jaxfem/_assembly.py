@@ -41,7 +41,7 @@ def _columns(model: Model, rows: np.ndarray) -> np.ndarray:
     return used if used.size else np.arange(1)
 
 
-def _node_transform(model: Model, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def node_transform(model: Model, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """T (n_el, 6·nn, nn·w) and solved-DoF indices (n_el, nn·w) for elements on `nodes`."""
     n_el, nn = nodes.shape
     cols = _columns(model, nodes)
@@ -51,6 +51,9 @@ def _node_transform(model: Model, nodes: np.ndarray) -> tuple[np.ndarray, np.nda
     for a in range(nn):
         t[:, a * COMPONENTS : (a + 1) * COMPONENTS, a * w : (a + 1) * w] = coef[:, a]
     return t, model.dofs.index[nodes][..., cols].reshape(n_el, nn * w)
+
+
+_node_transform = node_transform  # the former private name, still imported by updating
 
 
 def _spring_transform(model: Model) -> tuple[np.ndarray, np.ndarray]:
@@ -140,7 +143,7 @@ def assemble(model: Model) -> tuple[ElementMatrix, ElementMatrix]:
         check_float64(name, leaf)
     k_blocks, k_idx, m_blocks, m_idx = [], [], [], []
     for nodes, ke, me in _element_blocks(model).values():
-        t, idx = _node_transform(model, nodes)
+        t, idx = node_transform(model, nodes)
         if ke is not None:
             k_blocks.append(_reduce(t, ke))
             k_idx.append(idx)

@@ -35,8 +35,7 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float, Inexact, Int
 
 from ._model import Model, check_float64
-from .elements import shell_frame
-from .elements._shell import QUAD_CORNERS, quad_shape
+from .elements import QUAD_CORNERS, quad_shape, shell_frame
 
 METHODS = ("nearest", "interpolate")
 _AXES = "XYZ"

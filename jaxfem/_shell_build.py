@@ -38,7 +38,7 @@ import numpy as np
 
 from ._grids import _by_id, _f64, _Grids, _ints
 from ._model import MAT8, Materials, Shells, ShellSections
-from .elements._shell import shell_frame
+from .elements import shell_frame
 from .io import BulkData, BulkDataError, Card
 
 WARP_ERROR = 0.2  # warp |h| / (half the shorter diagonal) above which a quad is refused

@@ -324,6 +324,12 @@ def _factor(pat, backend, k_data, m_data, sigma):
     return f
 
 
+def clear_factors() -> None:
+    """Empty the cache of factorisations kept by :func:`factor` (timings of a fresh factor)."""
+    with _LOCK:
+        _FACTORS.clear()
+
+
 def new_factor(pat: SparsePattern, backend: str, data: np.ndarray, *, definite: bool) -> _Factor:
     """A factorisation of the matrix with CSR values ``data`` on ``pat`` (not cached):
     Cholesky if ``definite``, else a symmetric indefinite (PARDISO) or pivoted (SuperLU) one."""

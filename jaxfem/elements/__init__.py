@@ -10,6 +10,8 @@ from ._rod import rod_mass as rod_mass
 from ._rod import rod_stiffness as rod_stiffness
 from ._laminate import Laminate as Laminate
 from ._laminate import laminates as laminates
+from ._shell import QUAD_CORNERS as QUAD_CORNERS
+from ._shell import quad_shape as quad_shape
 from ._shell import shell_frame as shell_frame
 from ._shell import shell_mass as shell_mass
 from ._shell import shell_stiffness as shell_stiffness

@@ -22,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._model import MAT2, MAT8, Materials, ShellSections
+from .. import MAT2, MAT8, Materials, ShellSections  # exported before jaxfem imports this package
 
 SHEAR_CORRECTION = 5.0 / 6.0
 
