@@ -49,3 +49,7 @@ from ._time_data import frf_from_histories as frf_from_histories
 from ._time_data import plot_coherence as plot_coherence
 from ._time_data import read_dof_map as read_dof_map
 from ._fitting import IdentificationError as IdentificationError
+from ._patches import shell_centres as shell_centres
+from ._plots import boundary as boundary
+from ._plots import figure as figure
+from ._uff import dataset58_function_types as dataset58_function_types

@@ -42,8 +42,7 @@ import numpy as np
 from jaxtyping import ArrayLike, Float, Int
 
 import jaxfem
-from jaxfem import STIFFNESS_BLOCKS, Model
-from jaxfem._structural_damping import element_strain_energies, stiffness_ids, with_k_scale
+from jaxfem import STIFFNESS_BLOCKS, Model, element_strain_energies, stiffness_ids, with_k_scale
 
 from ._deviations import _scalar
 

@@ -15,7 +15,7 @@ test node a place in the model, as the thesis maps each sensor to the nearest FE
   has no coordinates), else ``nearest``.
 
 Each mapped test node becomes a dependent grid of the model at its point
-(:func:`jaxfem._edit.add_interpolated_grid`, no new DoFs), under the test node's id, or,
+(:func:`jaxfem.add_interpolated_grid`, no new DoFs), under the test node's id, or,
 when that id is a model grid elsewhere, the id plus the power of ten above every model and
 test id (test node 1 beside grid 6001 reads as 10001); the measured data are renamed to it. So
 every later step (pairing, residuals, effects, FRF prediction) reads the test where it was
@@ -40,8 +40,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 import jaxfem
-from jaxfem import Model
-from jaxfem._edit import add_interpolated_grid
+from jaxfem import Model, add_interpolated_grid
 
 from ._data import FRFData, ModalData, Sensors
 from ._uff_units import LENGTH_UNITS

@@ -32,7 +32,9 @@ _CLASSES = (
 )
 
 
-def _figure(width: float, height: float):
+def figure(width: float, height: float):
+    """A Matplotlib figure of ``width`` × ``height`` inches on its own Agg canvas (no pyplot
+    state), constrained layout, at the resolution of every plot here."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -68,7 +70,7 @@ def plot_stabilisation(report: Mapping, path: str | Path, title: str = "Stabilis
     except (KeyError, TypeError) as err:
         raise ValueError(f"the report has no stabilisation diagram ({err}); pass the report of identify") from err
     mode = np.asarray(diagram.get("mode", np.zeros(len(f))), dtype=np.int64)
-    fig = _figure(9.0, 5.5)
+    fig = figure(9.0, 5.5)
     ax = fig.add_subplot()
     classes = (~sf, sf & ~sd & ~sv, sf & sd & ~sv, sf & ~sd & sv, sf & sd & sv)
     for (label, marker, colour, filled), mask in zip(_CLASSES, classes):
@@ -147,7 +149,7 @@ def plot_damage_map(
         dims = np.array([0, 1]) if len(dims) == 0 else dims
         dims = np.array([dims[0], (dims[0] + 1) % 3]) if len(dims) == 1 else dims
 
-    fig = _figure(8.0, 7.0)
+    fig = figure(8.0, 7.0)
     line = flat and not np.all(spread[dims] > 1e-9 * max(float(spread.max()), 1e-300))
     grid = fig.add_gridspec(2, 1, height_ratios=(1, 2) if line else (3, 2))
     ax = fig.add_subplot(grid[0]) if flat else fig.add_subplot(grid[0], projection="3d")
@@ -200,7 +202,7 @@ def plot_damage_map(
     return path
 
 
-def _boundary(polygons: Sequence[np.ndarray]) -> np.ndarray:
+def boundary(polygons: Sequence[np.ndarray]) -> np.ndarray:
     """Outline of a union of polygons (each (k, 2)): the edges that belong to one polygon
     only, as segments (s, 2, 2)."""
     count: dict[tuple, int] = {}
@@ -211,6 +213,11 @@ def _boundary(polygons: Sequence[np.ndarray]) -> np.ndarray:
             count[key] = count.get(key, 0) + 1
             edges[key] = np.array([a, b])
     return np.array([edges[k] for k, n in count.items() if n == 1]).reshape(-1, 2, 2)
+
+
+# the former private names, still imported by updating
+_figure = figure
+_boundary = boundary
 
 
 def plot_shell_damage_map(
@@ -262,7 +269,7 @@ def plot_shell_damage_map(
         values = np.array([np.nanmean([c_of.get(int(node_ids[n]), np.nan) for n in c[c >= 0]])
                            if any(int(node_ids[n]) in c_of for n in c[c >= 0]) else np.nan for c in corners])
 
-    fig = _figure(8.0, 8.0)
+    fig = figure(8.0, 8.0)
     grid = fig.add_gridspec(2, 1, height_ratios=(3, 2))
     ax = fig.add_subplot(grid[0])
     cmap = colormaps["viridis"]
@@ -278,9 +285,9 @@ def plot_shell_damage_map(
     by_id = dict(zip(ids.tolist(), polys))
     truth = [by_id[int(e)] for e in true_elements if int(e) in by_id]
     if truth:
-        ax.add_collection(LineCollection(_boundary(truth), colors="tab:red", linewidths=2.5, label="true damage"))
+        ax.add_collection(LineCollection(boundary(truth), colors="tab:red", linewidths=2.5, label="true damage"))
     best = scan.best
-    ax.add_collection(LineCollection(_boundary([by_id[e] for e in scan.best_group]), colors="k", linewidths=1.8,
+    ax.add_collection(LineCollection(boundary([by_id[e] for e in scan.best_group]), colors="k", linewidths=1.8,
                                      linestyles="--", label=f"located (C = {scan.correlation[best]:.3f})"))
     centre = np.asarray(patches.centres)[best][dims]
     ax.plot(*centre, marker="x", color="k", markersize=9, mew=2)

@@ -357,13 +357,13 @@ def plot_coherence(frfs: FRFData, path: str | Path, title: str | None = None) ->
 
     **Returns:** the path written.
     """
-    from ._plots import _figure
+    from ._plots import figure
 
     unit = {"receptance": "m/N", "mobility": "m/(s·N)", "accelerance": "m/(s²·N)"}[frfs.kind]
     f = np.asarray(frfs.frequencies_hz)
     values = np.asarray(frfs.values)
     pairs = [(o, i) for o in range(len(frfs.outputs)) for i in range(len(frfs.inputs))]
-    fig = _figure(8.0, 6.0 if frfs.coherence is not None else 3.5)
+    fig = figure(8.0, 6.0 if frfs.coherence is not None else 3.5)
     axes = fig.subplots(2 if frfs.coherence is not None else 1, 1, sharex=True, squeeze=False)[:, 0]
     for o, i in pairs:
         label = f"{frfs.outputs.labels[o]} / {frfs.inputs.labels[i]}"
