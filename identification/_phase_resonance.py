@@ -45,6 +45,8 @@ import scipy.linalg as sl
 from jaxtyping import Float, Int
 from scipy.optimize import brentq
 
+from jaxfem import static_condensation
+
 from ._forces import _gram_eig, force_asher, force_hunt, force_lewis_wrisley, force_thesis
 from ._sine import (
     _count,
@@ -118,20 +120,19 @@ def _symmetric_system(K, M, damping):
 
 def _modes(K, M, n_modes: int | None):
     """Undamped modes, mass-normalised (eq. 3.14; eq. 3.53 at resonance). Massless DoFs
-    (zero rows of M: the rotations of a lumped-mass model) are condensed statically,
-    ``K* = K_aa − K_ab K_bb⁻¹ K_ba``, ``φ_b = −K_bb⁻¹ K_ba φ_a``, as :func:`jaxfem.eigh`
-    does; there are as many modes as DoFs with mass."""
+    (zero rows of M: the rotations of a lumped-mass model) are condensed statically
+    (:func:`jaxfem.static_condensation`), ``K* = K_aa − K_ab K_bb⁻¹ K_ba``,
+    ``φ_b = −K_bb⁻¹ K_ba φ_a``, as :func:`jaxfem.eigh` does; there are as many modes as
+    DoFs with mass."""
     b = np.flatnonzero(~np.any(M, axis=1))
     a = np.setdiff1d(np.arange(K.shape[0]), b)
     if not len(a):
         raise ValueError("M is zero: the model has no mass")
-    x = np.zeros((len(b), len(a)))
-    if len(b):
-        try:
-            x = np.linalg.solve(K[np.ix_(b, b)], K[np.ix_(b, a)])
-        except np.linalg.LinAlgError:
-            raise ValueError(f"the stiffness of the {len(b)} massless DoFs (zero rows of M) is singular: a mechanism "
-                             "(e.g. a rotation no element resists)") from None
+    try:
+        x = -static_condensation(K, a)[b]  # K_bb⁻¹ K_ba
+    except np.linalg.LinAlgError:
+        raise ValueError(f"the stiffness of the {len(b)} massless DoFs (zero rows of M) is singular: a mechanism "
+                         "(e.g. a rotation no element resists)") from None
     k_star = K[np.ix_(a, a)] - K[np.ix_(a, b)] @ x
     try:
         lam, phi_a = sl.eigh(0.5 * (k_star + k_star.T), M[np.ix_(a, a)])
@@ -160,17 +161,14 @@ def _frequencies(frequencies_hz, lam) -> np.ndarray:
 
 
 def _reduced_mass(K, M, exciters: np.ndarray, kind: str) -> np.ndarray:
-    """Mass model reduced to the exciters: diagonal entries, or Guyan condensation."""
+    """Mass model reduced to the exciters: diagonal entries, or Guyan condensation
+    ``Tᵀ M T`` (:func:`jaxfem.static_condensation`)."""
     if kind == "diagonal":
         return np.diag(M)[exciters]
-    rest = np.setdiff1d(np.arange(K.shape[0]), exciters)
-    T = np.zeros((K.shape[0], len(exciters)))
-    T[exciters, np.arange(len(exciters))] = 1.0
-    if len(rest):
-        try:
-            T[rest] = -np.linalg.solve(K[np.ix_(rest, rest)], K[np.ix_(rest, exciters)])
-        except np.linalg.LinAlgError:
-            raise ValueError("Guyan reduction needs K restricted to the other DoFs to be regular") from None
+    try:
+        T = static_condensation(K, exciters)
+    except np.linalg.LinAlgError:
+        raise ValueError("Guyan reduction needs K restricted to the other DoFs to be regular") from None
     return T.T @ M @ T
 
 

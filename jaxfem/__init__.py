@@ -47,6 +47,7 @@ from ._structural_damping import damping_matrix as damping_matrix
 from ._structural_damping import element_strain_energies as element_strain_energies
 from ._structural_damping import modal_loss_factors as modal_loss_factors
 from ._assembly import node_transform as node_transform
+from ._condensation import static_condensation as static_condensation
 from ._eager import compiled_when_eager as compiled_when_eager
 from ._eager import jit_over as jit_over
 from ._edit import add_bush as add_bush
