@@ -19,7 +19,7 @@ delamination ranked first with its centre within one element size of the true ce
 a CONM2 at a grid — the default —, on an RBE3 over a floor shell, or as a box there,
 :func:`payload_cards`) or with a loose frame-to-skin seam (``--hidden seam``,
 :func:`loose_seam`), and its control; the sparse eigensolver, the candidates fitted on
-reduced models (:mod:`updating._reduced`). Right: a mass (added, payload or distributed)
+reduced models (:mod:`updating.diagnosis._reduced`). Right: a mass (added, payload or distributed)
 ranked first, centred within half a frame pitch of the payload; a seam of the frames
 within one grid and one ladder step of the loose stretch.
 
@@ -119,7 +119,7 @@ def run_case(case, ray: str | None = None) -> dict:
     test = measure(case)
     start = time.perf_counter()
     options = DiagnoseOptions(ray=ray, ray_workers=2 if ray else None)
-    report = diagnose(model, test, parameters(case), options=options).report
+    report = diagnose(model, test, parameters(case), options=options).to_json()
     seconds = time.perf_counter() - start
     name = case.name + (f" (Ray {ray}, 2 workers)" if ray else "")
     return _row(name, case.description, model, test, report, seconds, found(report, case))
@@ -149,7 +149,7 @@ def run_panel(control: bool = False, element_size: float | None = None, n_modes:
     ``element_size`` (m) and ``n_modes``: of :func:`benchmarks.cfrp_panel.modal_change`
     (default: its 25 mm and 14 modes)."""
     from benchmarks import cfrp_panel as cp
-    from updating import DiagnoseOptions, relative_to
+    from updating import DiagnoseOptions, Noise, relative_to
 
     noise_f, noise_s = 1e-4, 0.01
     size = element_size or cp.COARSE
@@ -157,8 +157,8 @@ def run_panel(control: bool = False, element_size: float | None = None, n_modes:
                                                     n_modes=n_modes or cp.N_MODES)
     test, _ = relative_to(model, damaged, healthy)
     start = time.perf_counter()
-    options = DiagnoseOptions(noise_freq=np.sqrt(2) * noise_f, noise_shape=np.sqrt(2) * noise_s)
-    report = diagnose(model, test, options=options, progress=_progress).report
+    options = DiagnoseOptions(noise=Noise(frequency=np.sqrt(2) * noise_f, relative=np.sqrt(2) * noise_s, damping=0.1))
+    report = diagnose(model, test, options=options, progress=_progress).to_json()
     seconds = time.perf_counter() - start
     top = report["effects"][0] if report["outcome"] == "effect" else None
     xyz = np.asarray(model.xyz)
@@ -274,19 +274,19 @@ def barrel_case(n_dof: int = 33_000, hidden: str = "grid", control: bool = False
     on_floor = np.sort(rng.choice(floor, 20, replace=False))
     sensors = Sensors.from_components(np.concatenate([np.repeat(skin, 2), on_floor]),
                                       np.concatenate([np.tile([2, 3], len(skin)), np.full(len(on_floor), 3)]))
-    test = simulate_test(truth, sensors, 20, Noise(relative=0.01, frequency=0.002), jax.random.key(0), solver="sparse")
+    test = simulate_test(truth, sensors, 20, Noise(frequency=0.001, relative=0.01), jax.random.key(0), solver="sparse")
     return model, test, grids, centre
 
 
 def _seam_found(model, top: dict, grids: tuple[int, ...]) -> tuple[bool, float]:
     """Whether a seam of the frames ranks first on the loose stretch's line, centred within
     one grid of the stretch's centre along the line and as long within one step of the
-    ladder (:data:`~updating._effects.SEAM_LENGTHS`), and its centre's distance along the
+    ladder (:data:`~updating.diagnosis._effects.SEAM_LENGTHS`), and its centre's distance along the
     line (m; inf off the line). Centres are taken along the line, not as mean coordinates:
     the mean of grids on an arc lies inside it, the deeper the longer the arc (on the 33k
     crown a run of 21 grids centred on the 31 loose ones had its mean 0.19 m off theirs)."""
     from benchmarks import fuselage
-    from updating._effects import SEAM_LENGTHS, _seam_lines
+    from updating.diagnosis._effects import SEAM_LENGTHS, _seam_lines
 
     line = next(g for lines in _seam_lines(model).values() for g in lines if set(grids) <= set(g))
     if top["kind"] != "seam" or top["pids"][1] != fuselage.PID_FRAME or not set(top["nodes"]) <= set(line):
@@ -314,14 +314,14 @@ def run_barrel(control: bool = False, n_dof: int = 33_000, eigensolver: str = "a
     stretch (:func:`_seam_found`). ``ray``: the candidate fits on that Ray cluster
     (``local``: 2 workers)."""
     from benchmarks import fuselage
-    from updating import DiagnoseOptions
+    from updating import DiagnoseOptions, Noise
 
     model, test, grids, centre = barrel_case(n_dof, hidden, control)
     xyz = np.asarray(model.xyz)
     start = time.perf_counter()
-    options = DiagnoseOptions(noise_freq=0.001, noise_shape=0.01, eigensolver=eigensolver, ray=ray,
+    options = DiagnoseOptions(noise=Noise(frequency=0.001, relative=0.01, damping=0.1), eigensolver=eigensolver, ray=ray,
                               ray_workers=2 if ray else None)
-    report = diagnose(model, test, options=options, progress=_progress).report
+    report = diagnose(model, test, options=options, progress=_progress).to_json()
     seconds = time.perf_counter() - start
     top = report["effects"][0] if report["outcome"] == "effect" else None
     off = None

@@ -1,6 +1,6 @@
 """Monte-Carlo updating throughput (thesis §4.3 study, issue 6), one run.
 
-Batched: :class:`updating._montecarlo.Runner` — the complete update (pairing + Gauss–Newton
+Batched: :class:`updating.studies._montecarlo.Runner` — the complete update (pairing + Gauss–Newton
 loop) per sample, subspace eigensolves warm-started and preconditioned with the
 error-free update's (K − σM)⁻¹ (:func:`jaxfem.subspace`), samples sharded over 1, 2 and 4
 forced host devices (and 4 samples per ``vmap`` batch on one device), starting from the
@@ -53,7 +53,7 @@ import numpy as np
 
 from benchmarks.scipy_pipeline import ReferenceProblem, ScipyPipeline, verify
 from updating import Options
-from updating._montecarlo import Runner, _record, default_study, tree_parameters
+from updating.studies._montecarlo import Runner, _record, default_study, tree_parameters
 
 
 def _timed(fn):
@@ -122,19 +122,19 @@ def main(argv=None) -> dict:
     # Reference: a Python loop over the one-sample update with full eigensolves (each call
     # one compiled sample), from the initial model (the plain update) and, as the
     # equality reference of every sample, from the batched samples' start.
-    loop = Runner(dataclasses.replace(study, eigensolver="full", chunk_size=1), devices=jax.devices()[:1])
+    loop = Runner(dataclasses.replace(study, eigensolver="dense", chunk_size=1), devices=jax.devices()[:1])
     _, compile_loop = _timed(lambda: loop.reference_update(n))
     g = loop.group(n)
     f, phi = g.data(study, 0, S)
 
     def loop_from(start):
-        outs, t = _timed(lambda: [g.update(f[j:j + 1], phi[j:j + 1], "full", start) for j in range(S)])
+        outs, t = _timed(lambda: [g.update(f[j:j + 1], phi[j:j + 1], "dense", start) for j in range(S)])
         got = {k: np.concatenate([_record(o, np.asarray(f[j:j + 1]), np.zeros(1, bool))[k] for j, o in enumerate(outs)])
                for k in ("alpha", "status", "iterations")}
         return got, t
 
     ref, t_loop = loop_from(g.origin)
-    same, t_same = loop_from(g.sample_start("full"))
+    same, t_same = loop_from(g.sample_start("dense"))
     out = {"study": f"tree model 1, {n} modes, relative shape error {100 * args.error:g} %, {S} samples",
            "machine": f"{platform.machine()}, {os.cpu_count()} cores", "jax": jax.__version__}
     print(f"{out['study']}; {out['machine']}")

@@ -57,7 +57,7 @@ import scipy.linalg as sl
 from scipy import sparse
 
 DEGENERATE_RTOL = 1e-6  # as jaxfem.DEGENERATE_RTOL (not imported: the workers stay JAX-free)
-STATUS = ("ok", "not converged", "unpaired mode", "non-finite")  # as updating._montecarlo.STATUS
+STATUS = ("ok", "not converged", "unpaired mode", "non-finite")  # as updating.studies._montecarlo.STATUS
 
 
 @dataclasses.dataclass(frozen=True)

@@ -46,7 +46,7 @@ def _garteur_text() -> str:
     return (resources.files("updating") / "data" / "garteur.bdf").read_text()
 
 
-# joint references of the jaxfem model (updating._topology.joint_reference), rounded: the
+# joint references of the jaxfem model (updating.diagnosis._topology.joint_reference), rounded: the
 # truth's joints are these springs made softer
 _FIN_K = (3.0e8, 2.4e4)  # k_trans N/m, k_rot N·m/rad at RBE2 1029 → 6001, ≈ its reference / 500
 _WING_K = (1.0e9, 5.0e4)  # the wing–fuselage RBE2 1013 → 2000, 2001, 3001
@@ -104,7 +104,7 @@ def measure(case: Case, seed: int = 1) -> ModalData:
 
 def parameters(case: Case):
     """The engineer's parameters of the case (None: none)."""
-    from updating._demo import PARAMETERS
+    from updating.diagnosis._demo import PARAMETERS
 
     return PARAMETERS if case.model == "garteur" else None
 

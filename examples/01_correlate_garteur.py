@@ -3,20 +3,20 @@
 The files are those ``jaxfem demo`` writes (``updating.demo_case``): the nominal model
 ``garteur.bdf`` and ``test.uff``, 14 elastic modes at 24 sensors "measured" on a truth
 that differs from the model (fuselage stiffness +6 %, a flexible fin-root joint), with
-0.2 % noise on frequencies and 1 % on shape components (``updating.simulate_test``). Shows:
-model modes, pairing by MAC and Δf (thesis eq. 4.1), the table f_test, f_model, Δf %,
-MAC and the sensors with the lowest COMAC. Next: ``02_update.py`` (make the model agree by updating parameters).
+0.2 % noise on frequencies and 1 % on shape components (``updating.simulate_test``).
+Shows, in one call (``updating.correlate``): model modes, pairing by MAC and Δf (thesis
+eq. 4.1), the table f_test, f_model, Δf %, MAC and the sensors with the lowest COMAC.
+Next: ``02_update.py`` (make the model agree by updating parameters).
 """
 
 import tempfile
 from pathlib import Path
 
 import jax
-import numpy as np
 
 import jaxfem
 import updating
-from identification import observation_matrix, read_uff
+from identification import read_uff
 from jaxfem.io import read_bdf
 
 
@@ -32,23 +32,20 @@ def case(directory=None):
 def main() -> dict:
     jax.config.update("jax_enable_x64", True)
     model, test = case()
-    sensors = test.sensors
-    n = updating.n_model_modes(model, test.n_modes)  # twice the test modes, at least 6 spare
-    lam, phi = jaxfem.modes(model, n)
-    f_a, phi_a = np.asarray(jaxfem.frequencies_hz(lam)), np.asarray(observation_matrix(model, sensors)[0] @ phi)
-    pairing = updating.pair_modes(f_a, phi_a, test.frequencies_hz, test.shapes)
-    print(f"GARTEUR: {model.n_dof} DoFs, {n} model modes; test: {test.n_modes} modes at {len(sensors)} sensors")
+    # model modes (twice the test modes, at least 6 spare: updating.n_model_modes) read at the
+    # sensors, paired by MAC and Δf (eq. 4.1), AutoMAC, COMAC, spatial aliasing
+    res = updating.correlate(model, test)
+    print(f"GARTEUR: {model.n_dof} DoFs, {res.n_model_modes} model modes; "
+          f"test: {test.n_modes} modes at {len(res.sensors)} sensors")
     print(f"{'test':>4} {'model':>5} {'f_test [Hz]':>11} {'f_model [Hz]':>12} {'Δf [%]':>7} {'MAC':>6}")
-    for t, m, ft, fm, df, c in pairing.table():
+    for t, m, ft, fm, df, c in res.pairing.table():
         print(f"{t:>4} {m or '–':>5} {ft:>11.3f} " + (f"{fm:>12.3f} {df:>+7.2f} {c:>6.3f}" if m else "unpaired"))
-    summary = pairing.summary()
-    print("\n".join(pairing.warnings))
-    print(f"RMS Δf {summary['rms_freq_dev_pct']:.2f} %, mean MAC {summary['mean_mac']:.3f}")
-    co = np.asarray(updating.comac(phi_a[:, pairing.model], test.shapes[:, pairing.test]))
-    worst = np.argsort(co)[:5]
-    print("lowest COMAC: " + ", ".join(f"{sensors.labels[i]} {co[i]:.3f}" for i in worst))
-    return {"n_paired": int(pairing.test.size), "rms_freq_dev_pct": summary["rms_freq_dev_pct"],
-            "mean_mac": summary["mean_mac"], "worst_comac_sensor": sensors.labels[worst[0]]}
+    print("\n".join(res.warnings))
+    print(f"RMS Δf {res.rms_freq_dev_pct:.2f} %, mean MAC {res.mean_mac:.3f}")
+    worst = res.comac_ranking[:5]
+    print("lowest COMAC: " + ", ".join(f"{sensor} {value:.3f}" for sensor, value in worst))
+    return {"n_paired": res.n_paired, "rms_freq_dev_pct": res.rms_freq_dev_pct, "mean_mac": res.mean_mac,
+            "worst_comac_sensor": worst[0][0]}
 
 
 if __name__ == "__main__":

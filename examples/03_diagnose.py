@@ -32,23 +32,20 @@ def main() -> dict:
     spec.loader.exec_module(correlate := importlib.util.module_from_spec(spec))  # its case()
     model, test = correlate.case()
     diag = updating.diagnose(model, test, PARAMETERS, options=OPTIONS, progress=lambda s: print(f"[diagnose] {s}"))
-    rep = diag.report
-    b = rep["baseline"]
-    print(f"baseline (parameters fitted): RMS Δf {b['rms_freq_dev_pct']:.2f} %, held-out RMS Δf "
-          f"{b['heldout_rms_freq_dev_pct']:.2f} %, χ²/row {b['chi2_per_row']:.1f}")
+    b = diag.baseline
+    print(f"baseline (parameters fitted): RMS Δf {b.rms_freq_dev_pct:.2f} %, held-out RMS Δf "
+          f"{b.heldout_rms_freq_dev_pct:.2f} %, χ²/row {b.chi2_per_row:.1f}")
     print("where it fails (property groups): " + ", ".join(
-        f"pid {g['pid']} {g['score']:.2f}" for g in rep["localisation"]["groups"][:4]))
+        f"pid {pid} {score:.2f}" for pid, score, *_ in diag.localisation.groups[:4]))
     print(f"{'rank':>4} {'effect':<36} {'posterior':>9} {'ln B':>9}  declared")
-    for e in rep["effects"][:5]:  # ln B: log Bayes factor against the baseline
-        print(f"{e['rank']:>4} {e['kind'] + ' ' + e['where']:<36.36} {e['posterior']:>9.3f} "
-              f"{e['log_evidence']:>9.1f}  {'yes' if e['warranted'] else 'no'}")
-    print(rep["verdict"])
-    print(f"{rep['candidates_evaluated']} candidates screened, {rep['candidates_fitted']} fitted, "
-          f"{rep['seconds']:.0f} s")
-    best = rep["effects"][0]
-    return {"kind": best["kind"], "nodes": list(best["nodes"]), "warranted": bool(best["warranted"]),
-            "score": best["score"], "no_effect_warranted": bool(rep["no_effect_warranted"])}
-
+    for e in diag.effects[:5]:  # ln B: log Bayes factor against the baseline
+        print(f"{e.rank:>4} {e.effect.kind + ' ' + e.effect.where():<36.36} {e.posterior:>9.3f} "
+              f"{e.log_evidence:>9.1f}  {'yes' if e.warranted else 'no'}")
+    print(diag.verdict)
+    print(f"{diag.candidates_evaluated} candidates screened, {diag.candidates_fitted} fitted, {diag.seconds:.0f} s")
+    best = diag.effects[0]
+    return {"kind": best.effect.kind, "nodes": list(best.effect.nodes), "warranted": best.warranted,
+            "score": best.score, "no_effect_warranted": diag.no_effect_warranted}
 
 if __name__ == "__main__":
     main()

@@ -53,3 +53,16 @@ from ._patches import shell_centres as shell_centres
 from ._plots import boundary as boundary
 from ._plots import figure as figure
 from ._uff import dataset58_function_types as dataset58_function_types
+from ._correlation import Pairing as Pairing
+from ._correlation import aliasing as aliasing
+from ._correlation import automac as automac
+from ._correlation import comac as comac
+from ._correlation import cross_orthogonality as cross_orthogonality
+from ._correlation import frequency_deviation as frequency_deviation
+from ._correlation import mac as mac
+from ._correlation import modal_scale_factor as modal_scale_factor
+from ._correlation import pair_modes as pair_modes
+from ._correlation import pair_modes_masked as pair_modes_masked
+from ._correlation import rms_pct as rms_pct
+from ._correlation import MAX_FREQ_DEV as MAX_FREQ_DEV
+from ._correlation import MIN_MAC as MIN_MAC

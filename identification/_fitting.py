@@ -24,7 +24,6 @@ from ._lscf import (
     _check_criteria,
     _clusters,
     _diagram_json,
-    _mac,
     _min_orders,
     _orders,
     _stabilisation,
@@ -36,7 +35,7 @@ from ._sdof import _inverse_fit, sdof_fit
 
 # identify, and the names tests, benchmarks and docs/thesis.md import from here (before the
 # split into _sdof, _lscf and _lsfd they were defined here)
-__all__ = ["IdentificationError", "identify", "lscf", "lsfd", "sdof_fit", "stabilisation", "_inverse_fit", "_mac"]
+__all__ = ["IdentificationError", "identify", "lscf", "lsfd", "sdof_fit", "stabilisation", "_inverse_fit"]
 
 
 class IdentificationError(ValueError):
@@ -125,27 +124,43 @@ def identify(
     needed = _min_orders(len(orders), min_fraction)
     clusters = _clusters(table, tol_f, min_mac)
     selected = [idx for idx in clusters if len(idx) >= needed]
+    options = {
+        "fmin": fmin,
+        "fmax": fmax,
+        "orders": list(orders),
+        "min_coherence": min_coherence,
+        "tol_f": tol_f,
+        "tol_zeta": tol_zeta,
+        "min_mac": min_mac,
+        "max_damping": max_damping,
+        "min_fraction": min_fraction,
+        "real": real,
+    }
+    report = _report(frfs, f, h, usable, bands, table, orders, needed, selected, options)
+    if not selected:
+        raise _no_modes(report, table, clusters, orders, needed, f)
+    try:
+        modes, complexity, fn, zn, fit = _shapes(frfs, f, h, usable, power, table, selected, real)
+    except ValueError as err:
+        report["error"] = str(err)
+        raise IdentificationError(str(err), report) from err
+    _add_modes(report, frfs, modes, selected, complexity, fn, zn, fit, real)
+    return modes, report
+
+
+def _report(frfs: FRFData, f, h, usable, bands, table, orders, needed, selected, options: dict) -> dict:
+    """The report of :func:`identify` before the shape fit: options, band, diagram and mode indicator."""
     indicator = _indicator(h, usable)
-    report = {
+    tol_f, tol_zeta, min_mac = options["tol_f"], options["tol_zeta"], options["min_mac"]
+    return {
         "method": "pLSCF (Peeters et al. 2004) + LSFD with lower/upper residuals",
         "identified": False,
-        "options": {
-            "fmin": fmin,
-            "fmax": fmax,
-            "orders": list(orders),
-            "min_coherence": min_coherence,
-            "tol_f": tol_f,
-            "tol_zeta": tol_zeta,
-            "min_mac": min_mac,
-            "max_damping": max_damping,
-            "min_fraction": min_fraction,
-            "real": real,
-        },
+        "options": options,
         "kind": frfs.kind,
         "band_hz": [float(f[0]), float(f[-1])],
         "n_lines": len(f),
         "coherence": "not given" if frfs.coherence is None else "given",
-        "min_coherence": min_coherence,
+        "min_coherence": options["min_coherence"],
         "masked_bands_hz": [list(b) for b in bands],
         "orders": list(orders),
         "min_orders": needed,
@@ -155,31 +170,33 @@ def identify(
         "stabilisation": _diagram_json(table, orders, tol_f, tol_zeta, min_mac, selected),
         "indicator": {"frequency_hz": f.tolist(), "value": (indicator / max(np.max(indicator), 1e-300)).tolist()},
     }
-    if not selected:
-        n_stable = int(np.count_nonzero(table["stable_frequency"] & table["stable_damping"] & table["stable_mac"]))
-        reason = (
-            f"no pole is stable over {needed} of the orders {orders[0]}–{orders[-1]} in "
-            f"[{f[0]:.6g}, {f[-1]:.6g}] Hz ({n_stable} of {len(table['pole'])} poles stable in frequency, "
-            "damping and MAC"
-        )
-        if clusters:
-            best = max(clusters, key=len)
-            reason += (f"; the most persistent, at {np.median(np.abs(table['pole'][best])) / (2 * np.pi):.6g} Hz, "
-                       f"over {len(best)} orders")
-        reason += ")"
-        if len(orders) <= needed:
-            reason += f"; the lowest order is never stable, so {needed} stable orders need at least {needed + 1}"
-        report["error"] = reason
-        raise IdentificationError(
-            f"{reason}; try more or higher orders, looser tol_f, tol_zeta or min_mac, another band "
-            "(fmin, fmax) or a lower min_coherence",
-            report,
-        )
-    try:
-        modes, complexity, fn, zn, fit = _shapes(frfs, f, h, usable, power, table, selected, real)
-    except ValueError as err:
-        report["error"] = str(err)
-        raise IdentificationError(str(err), report) from err
+
+
+def _no_modes(report: dict, table, clusters, orders, needed, f) -> IdentificationError:
+    """The :class:`IdentificationError` when no pole is stable over ``needed`` orders; sets ``report["error"]``."""
+    n_stable = int(np.count_nonzero(table["stable_frequency"] & table["stable_damping"] & table["stable_mac"]))
+    reason = (
+        f"no pole is stable over {needed} of the orders {orders[0]}–{orders[-1]} in "
+        f"[{f[0]:.6g}, {f[-1]:.6g}] Hz ({n_stable} of {len(table['pole'])} poles stable in frequency, "
+        "damping and MAC"
+    )
+    if clusters:
+        best = max(clusters, key=len)
+        reason += (f"; the most persistent, at {np.median(np.abs(table['pole'][best])) / (2 * np.pi):.6g} Hz, "
+                   f"over {len(best)} orders")
+    reason += ")"
+    if len(orders) <= needed:
+        reason += f"; the lowest order is never stable, so {needed} stable orders need at least {needed + 1}"
+    report["error"] = reason
+    return IdentificationError(
+        f"{reason}; try more or higher orders, looser tol_f, tol_zeta or min_mac, another band "
+        "(fmin, fmax) or a lower min_coherence",
+        report,
+    )
+
+
+def _add_modes(report: dict, frfs: FRFData, modes: ModalData, selected, complexity, fn, zn, fit, real: bool) -> None:
+    """Complete ``report`` with the identified modes: reciprocity, sensors, shapes, per-mode table and fit."""
     measured = set(frfs.outputs.labels)
     from_inputs = [label for label in modes.sensors.labels if label not in measured]
     report["identified"] = True
@@ -204,7 +221,6 @@ def identify(
         for r in range(modes.n_modes)
     ]
     report["fit"] = fit
-    return modes, report
 
 
 def _shapes(frfs: FRFData, f, h, usable, power, table, selected, real):

@@ -237,6 +237,26 @@ def map_test_geometry(
         raise ValueError("--align moves the test geometry onto the model: use it with --map nearest or interpolate")
     nodes = np.array(sorted(used), dtype=np.int64)
     xyz = np.array([test_nodes[g] for g in nodes.tolist()]).reshape(-1, 3) if not absent else np.zeros((0, 3))
+    method, note = _choose_method(method, align_frames, absent, nodes, xyz, known, grid_xyz, size)
+    if method == "id":
+        return model, _map_by_id(nodes, xyz, absent, known, grid_xyz, note)
+    if not length_units_given:
+        check_units(xyz, grid_xyz, length_factor)
+    alignment = None
+    if align_frames:
+        alignment = align(xyz, model)
+        xyz = xyz @ alignment["rotation"].T + alignment["translation"]
+    located = jaxfem.locate_sensors(model, xyz, [1] * len(nodes), method, labels=[str(g) for g in nodes.tolist()])
+    _check_distances(located, nodes, grid_xyz, size, max_distance)
+    model, grids, renamed = _add_test_grids(model, ids, known, nodes, xyz, located)
+    reads = tuple(located.where(s) for s in range(len(nodes)))
+    return model, GeometryMap(method, nodes, np.asarray(grids, dtype=np.int64), xyz, reads, located.distance,
+                              alignment, note, renamed)
+
+
+def _choose_method(method: str, align_frames: bool, absent: list[int], nodes: np.ndarray, xyz: np.ndarray,
+                   known: dict[int, int], grid_xyz: np.ndarray, size: float) -> tuple[str, str]:
+    """The mapping method and why it was chosen: ``method`` itself unless it is "auto"."""
     note = ""
     if method == "auto" and align_frames:
         method, note = "nearest", "--align"
@@ -253,23 +273,26 @@ def map_test_geometry(
                 n_known = sum(g in known for g in nodes.tolist())
                 note = (f"{len(nodes) - n_known} of {len(nodes)} test nodes are not model grids" if n_known < len(nodes)
                         else "the test nodes' coordinates differ from the model grids of the same ids")
-    if method == "id":
-        missing = sorted(g for g in nodes.tolist() if g not in known)
-        if missing:
-            hint = ("--map nearest" if not absent else "a test file with node coordinates (datasets 15/2411) and "
-                    "--map nearest")
-            raise ValueError(f"test node(s) {missing} are not model grids: map them by geometry with {hint}")
-        rows = [known[g] for g in nodes.tolist()]
-        distance = (np.linalg.norm(grid_xyz[rows] - xyz, axis=1) if len(xyz) else np.zeros(len(nodes)))
-        return model, GeometryMap("id", nodes, nodes, grid_xyz[rows], tuple(f"grid {g}" for g in nodes.tolist()),
-                                  distance, note=note)
-    if not length_units_given:
-        check_units(xyz, grid_xyz, length_factor)
-    alignment = None
-    if align_frames:
-        alignment = align(xyz, model)
-        xyz = xyz @ alignment["rotation"].T + alignment["translation"]
-    located = jaxfem.locate_sensors(model, xyz, [1] * len(nodes), method, labels=[str(g) for g in nodes.tolist()])
+    return method, note
+
+
+def _map_by_id(nodes: np.ndarray, xyz: np.ndarray, absent: list[int], known: dict[int, int], grid_xyz: np.ndarray,
+               note: str) -> GeometryMap:
+    """The :class:`GeometryMap` of test nodes that are model grids of the same ids."""
+    missing = sorted(g for g in nodes.tolist() if g not in known)
+    if missing:
+        hint = ("--map nearest" if not absent else "a test file with node coordinates (datasets 15/2411) and "
+                "--map nearest")
+        raise ValueError(f"test node(s) {missing} are not model grids: map them by geometry with {hint}")
+    rows = [known[g] for g in nodes.tolist()]
+    distance = (np.linalg.norm(grid_xyz[rows] - xyz, axis=1) if len(xyz) else np.zeros(len(nodes)))
+    return GeometryMap("id", nodes, nodes, grid_xyz[rows], tuple(f"grid {g}" for g in nodes.tolist()),
+                       distance, note=note)
+
+
+def _check_distances(located, nodes: np.ndarray, grid_xyz: np.ndarray, size: float,
+                     max_distance: float | None) -> None:
+    """``ValueError`` when a located test node is farther than ``max_distance`` (default: from size and spacing)."""
     if max_distance is None:
         spacing = float(np.median(cKDTree(grid_xyz).query(grid_xyz, k=2)[0][:, 1])) if len(grid_xyz) > 1 else 0.0
         limit = max(MAX_DISTANCE * size, MAX_SPACINGS * spacing)
@@ -284,6 +307,12 @@ def map_test_geometry(
             f"{len(far)} test node(s) lie farther than {limit:.3g} m from the model{why}"
             + f"; the worst, test node {nodes[w]}, is {located.distance[w]:.3g} m from {located.where(w)}: check the "
             "test file's units and frame (--test-units, --align) or accept the distances with --max-distance")
+
+
+def _add_test_grids(model: Model, ids: np.ndarray, known: dict[int, int], nodes: np.ndarray, xyz: np.ndarray,
+                    located) -> tuple[Model, list[int], dict[int, int]]:
+    """The model with a dependent grid per located test node that is not a model grid at its place; the grid
+    of each test node and {test node: its new grid id} for test ids that clash with model grids."""
     offset = 10 ** len(str(max(int(ids.max(initial=0)), int(nodes.max(initial=0)))))  # 1 → 10001 beside grid 6001
     renamed: dict[int, int] = {}
     grids = []
@@ -298,6 +327,4 @@ def map_test_geometry(
             new = renamed[g] = offset + g
         model, _ = add_interpolated_grid(model, read.tolist(), weights.tolist(), xyz[s], new)
         grids.append(new)
-    reads = tuple(located.where(s) for s in range(len(nodes)))
-    return model, GeometryMap(method, nodes, np.asarray(grids, dtype=np.int64), xyz, reads, located.distance,
-                              alignment, note, renamed)
+    return model, grids, renamed

@@ -22,6 +22,7 @@ from collections.abc import Sequence
 import numpy as np
 from jaxtyping import Complex
 
+from ._correlation import mac as mac_matrix
 from ._data import FRFData
 from ._fit_data import _data
 
@@ -150,12 +151,6 @@ def _lscf_poles(f, h, usable, orders, max_damping):
     return out
 
 
-def _mac(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """MAC between the columns of a (n, p) and b (n, q), complex-aware (thesis eq. 1.54)."""
-    num = np.abs(a.conj().T @ b) ** 2
-    return num / np.outer(np.sum(np.abs(a) ** 2, axis=0), np.sum(np.abs(b) ** 2, axis=0))
-
-
 def _stabilisation(f, h, usable, orders, tol_f, tol_zeta, min_mac, max_damping) -> dict:
     poles_by_order = _lscf_poles(f, h, usable, orders, max_damping)
     rows = {key: [] for key in ("order", "pole", "stable_frequency", "stable_damping", "stable_mac")}
@@ -168,7 +163,7 @@ def _stabilisation(f, h, usable, orders, tol_f, tol_zeta, min_mac, max_damping) 
         if previous is not None and len(previous[0]) and len(poles):
             f0, z0, shapes0 = previous
             df = np.abs(fn[:, None] - f0[None, :]) / fn[:, None]
-            mac = _mac(shapes, shapes0)
+            mac = np.asarray(mac_matrix(shapes, shapes0))
             j = np.argmin(df + (1 - mac), axis=1)  # the previous-order pole most like this one
             k = np.arange(len(poles))
             sf = df[k, j] <= tol_f
@@ -219,7 +214,7 @@ def _clusters(table: dict, tol_f: float, min_mac: float) -> list[np.ndarray]:
         fn = np.abs(table["pole"][stable]) / (2 * np.pi)
         shapes = table["shape"][:, stable]
         df = np.abs(fn[:, None] - fn[None, :]) / (0.5 * (fn[:, None] + fn[None, :]))
-        dist = np.maximum(df / tol_f, (1 - _mac(shapes, shapes)) / (1 - min_mac))
+        dist = np.maximum(df / tol_f, (1 - np.asarray(mac_matrix(shapes, shapes))) / (1 - min_mac))
         dist = 0.5 * (dist + dist.T)
         np.fill_diagonal(dist, 0.0)
         labels = fcluster(linkage(squareform(dist, checks=False), method="average"), t=1.0, criterion="distance")

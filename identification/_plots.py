@@ -141,13 +141,7 @@ def plot_damage_map(
     rows, eids = model.segments()
     values = scan.element_values()
     c = np.array([values.get(int(e), np.nan) for e in eids])
-    used = xyz[np.unique(rows)] if len(rows) else xyz
-    spread = np.ptp(used, axis=0)
-    dims = np.flatnonzero(spread > 1e-9 * max(float(spread.max()), 1e-300))
-    flat = len(dims) <= 2
-    if flat:
-        dims = np.array([0, 1]) if len(dims) == 0 else dims
-        dims = np.array([dims[0], (dims[0] + 1) % 3]) if len(dims) == 1 else dims
+    used, spread, dims, flat = _drawing_axes(xyz, rows)
 
     fig = figure(8.0, 7.0)
     line = flat and not np.all(spread[dims] > 1e-9 * max(float(spread.max()), 1e-300))
@@ -186,7 +180,25 @@ def plot_damage_map(
     ax.legend(loc="best", fontsize=8)
     ax.set_title(title, fontsize=10)
 
-    bars = fig.add_subplot(grid[1])
+    _candidate_bars(fig.add_subplot(grid[1]), scan, true_elements)
+    return _save(fig, path)
+
+
+def _drawing_axes(xyz: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+    """The grids drawn, their spread per axis, the axes to draw and whether the model is flat (in a
+    plane or on a line: drawn in 2-D over two axes) for :func:`plot_damage_map`."""
+    used = xyz[np.unique(rows)] if len(rows) else xyz
+    spread = np.ptp(used, axis=0)
+    dims = np.flatnonzero(spread > 1e-9 * max(float(spread.max()), 1e-300))
+    flat = len(dims) <= 2
+    if flat:
+        dims = np.array([0, 1]) if len(dims) == 0 else dims
+        dims = np.array([dims[0], (dims[0] + 1) % 3]) if len(dims) == 1 else dims
+    return used, spread, dims, flat
+
+
+def _candidate_bars(bars, scan: DamageScan, true_elements: Sequence[int]) -> None:
+    """C per candidate on ``bars``, labelled by its first element id: located black, true damage red."""
     k = np.arange(len(scan.groups))
     true_set = {int(e) for e in true_elements}
     colours = ["k" if i == scan.best else "tab:red" if set(g) & true_set else "tab:blue"
@@ -196,6 +208,10 @@ def plot_damage_map(
     bars.set_xticks(k[::step], [str(g[0]) for g in scan.groups[::step]], fontsize=7)
     bars.set(xlabel="candidate (first element id)", ylabel="C", ylim=(0.0, 1.05))
     bars.set_title("black: located; red: true damage", fontsize=8)
+
+
+def _save(fig, path: str | Path) -> Path:
+    """Write ``fig`` as a PNG at ``path`` (creating its folder); returns the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, format="png")
@@ -214,10 +230,6 @@ def boundary(polygons: Sequence[np.ndarray]) -> np.ndarray:
             edges[key] = np.array([a, b])
     return np.array([edges[k] for k, n in count.items() if n == 1]).reshape(-1, 2, 2)
 
-
-# the former private names, still imported by updating
-_figure = figure
-_boundary = boundary
 
 
 def plot_shell_damage_map(
@@ -261,13 +273,7 @@ def plot_shell_damage_map(
     dims = np.sort(np.argsort(-spread)[:2])
     xyz = np.asarray(model.xyz, dtype=np.float64)
     polys = [xyz[c[c >= 0]][:, dims] for c in corners]
-    c_of = dict(zip(np.asarray(patches.anchors).tolist(), scan.correlation.tolist()))
-    if patches.at == "elements":
-        values = np.array([c_of.get(int(e), np.nan) for e in ids])
-    else:
-        node_ids = np.asarray(model.node_ids)
-        values = np.array([np.nanmean([c_of.get(int(node_ids[n]), np.nan) for n in c[c >= 0]])
-                           if any(int(node_ids[n]) in c_of for n in c[c >= 0]) else np.nan for c in corners])
+    values = _shell_values(model, scan, patches, ids, corners)
 
     fig = figure(8.0, 8.0)
     grid = fig.add_gridspec(2, 1, height_ratios=(3, 2))
@@ -300,8 +306,25 @@ def plot_shell_damage_map(
     ax.legend(loc="upper right", fontsize=8, framealpha=0.9)
     ax.set_title(title, fontsize=10)
 
-    bars = fig.add_subplot(grid[1])
-    e, a = scan.measured, scan.predicted[best]
+    _deviation_bars(fig.add_subplot(grid[1]), scan)
+    return _save(fig, path)
+
+
+def _shell_values(model: Model, scan: DamageScan, patches, ids: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """C per shell element: of the patch centred on it (``at="elements"``) or the mean over its corner
+    grids (``at="grids"``); NaN where no patch gives one."""
+    c_of = dict(zip(np.asarray(patches.anchors).tolist(), scan.correlation.tolist()))
+    if patches.at == "elements":
+        return np.array([c_of.get(int(e), np.nan) for e in ids])
+    node_ids = np.asarray(model.node_ids)
+    return np.array([np.nanmean([c_of.get(int(node_ids[n]), np.nan) for n in c[c >= 0]])
+                     if any(int(node_ids[n]) in c_of for n in c[c >= 0]) else np.nan for c in corners])
+
+
+def _deviation_bars(bars, scan: DamageScan) -> None:
+    """Per mode on ``bars``: the measured Δη_e (eq. 3.43) and the located candidate's Δη_a (eq. 3.44)
+    scaled by its least-squares factor."""
+    e, a = scan.measured, scan.predicted[scan.best]
     scale = float(a @ e) / float(a @ a) if float(a @ a) > 0 else 0.0
     k = np.arange(len(e))
     bars.bar(k - 0.2, 100 * e, width=0.4, color="tab:red", label="measured Δη_e")
@@ -310,7 +333,3 @@ def plot_shell_damage_map(
     bars.set_xticks(k, [f"{f:.0f}" for f in scan.model_hz], rotation=60, fontsize=7)
     bars.set(xlabel="mode (model frequency, Hz)", ylabel="damping deviation (%)")
     bars.legend(fontsize=8)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, format="png")
-    return path

@@ -32,41 +32,13 @@ def _modes(records: list[tuple[int, dict]], nodes: dict, units: dict, path: str)
     for number, r in modes:
         mode = int(r["mode_n"])
         name = f"{path}: dataset #{number} (mode {mode})"
-        if r["spec_data_type"] not in _MOTION_TYPES:
-            raise ValueError(
-                f"{name}: specific data type {r['spec_data_type']} is not a motion (expected 0, 1, 8, 11, 12)"
-            )
-        if r["data_ch"] not in (2, 3):
-            raise ValueError(f"{name}: data characteristic {r['data_ch']} is not a 3- or 6-DoF vector")
-        n_comp = 3 if r["data_ch"] == 2 else 6
-        node_ids = np.asarray(r["node_nums"], dtype=np.int64)
-        values = np.column_stack([np.asarray(r[f"r{c}"]) for c in range(1, n_comp + 1)])
-        values[:, :3] = values[:, :3] / length
-        uniq, counts = np.unique(node_ids, return_counts=True)
-        if np.any(counts > 1):
-            raise ValueError(f"{name}: node(s) {uniq[counts > 1].tolist()} appear twice (duplicate DoFs)")
-        if nodes:
-            absent = [int(g) for g in node_ids if int(g) not in nodes]
-            if absent:
-                raise ValueError(f"{name}: node(s) {absent} are not defined in the node datasets (15/2411)")
-        dofs = [(int(g), c) for g in node_ids for c in range(1, n_comp + 1)]
-        column = dict(zip(dofs, values.reshape(-1)))
-        bad = [dof for dof, v in column.items() if not np.isfinite(v)]
-        if bad:
-            raise ValueError(f"{name}: value {column[bad[0]]} at DoF {_label(*bad[0])}")
-        if r["analysis_type"] == _NORMAL_MODE:
-            freqs.append(float(r["freq"]))
-            zetas.append(float(r["modal_damp_vis"]))
-            masses.append(float(r["modal_m"]) * length / units["force"])
-            if r["modal_damp_his"] != 0 and r["modal_damp_vis"] == 0:
-                hysteretic.append(mode)
-        else:
-            lam = complex(r["eig"])
-            if not (np.isfinite(lam) and abs(lam) > 0):
-                raise ValueError(f"{name}: eigenvalue {lam} is not finite and non-zero")
-            freqs.append(abs(lam) / (2 * np.pi))
-            zetas.append(-lam.real / abs(lam))
-            masses.append(0.0)
+        column = _mode_column(r, name, nodes, length)
+        freq, zeta, mass = _mode_spectrum(r, name, units)
+        freqs.append(freq)
+        zetas.append(zeta)
+        masses.append(mass)
+        if r["analysis_type"] == _NORMAL_MODE and r["modal_damp_his"] != 0 and r["modal_damp_vis"] == 0:
+            hysteretic.append(mode)
         columns.append((name, column))
         ids.append(mode)
     if hysteretic:
@@ -75,15 +47,7 @@ def _modes(records: list[tuple[int, dict]], nodes: dict, units: dict, path: str)
             "viscous damping ratio is 0",
             stacklevel=3,
         )
-    order = list(dict.fromkeys(dof for _, column in columns for dof in column))
-    for name, column in columns:
-        missing = [_label(*dof) for dof in order if dof not in column]
-        if missing:
-            raise ValueError(f"{name} lacks DoFs {missing} present in other modes (shapes must be complete)")
-    shapes = np.array([[column[dof] for _, column in columns] for dof in order])
-    measured = np.any(shapes != 0, axis=1)
-    sensors = Sensors.from_components([g for g, _ in order], [c for _, c in order])
-    sensors = Sensors(sensors.nodes[measured], sensors.directions[measured], sensors.rotational[measured])
+    shapes, sensors = _shapes(columns)
     masses = np.asarray(masses)
     if np.any(masses > 0) and not np.all(masses > 0):
         warnings.warn(
@@ -93,7 +57,7 @@ def _modes(records: list[tuple[int, dict]], nodes: dict, units: dict, path: str)
     try:
         return ModalData(
             np.asarray(freqs),
-            shapes[measured],
+            shapes,
             sensors,
             damping_ratios=np.asarray(zetas),
             generalised_masses=masses if np.all(masses > 0) else None,
@@ -101,6 +65,58 @@ def _modes(records: list[tuple[int, dict]], nodes: dict, units: dict, path: str)
         )
     except ValueError as err:
         raise ValueError(f"{path}: {err}") from err
+
+
+def _mode_column(r: dict, name: str, nodes: dict, length: float) -> dict[tuple[int, int], float]:
+    """Shape values of one dataset-55 record by DoF (node, direction code), translations in SI."""
+    if r["spec_data_type"] not in _MOTION_TYPES:
+        raise ValueError(
+            f"{name}: specific data type {r['spec_data_type']} is not a motion (expected 0, 1, 8, 11, 12)"
+        )
+    if r["data_ch"] not in (2, 3):
+        raise ValueError(f"{name}: data characteristic {r['data_ch']} is not a 3- or 6-DoF vector")
+    n_comp = 3 if r["data_ch"] == 2 else 6
+    node_ids = np.asarray(r["node_nums"], dtype=np.int64)
+    values = np.column_stack([np.asarray(r[f"r{c}"]) for c in range(1, n_comp + 1)])
+    values[:, :3] = values[:, :3] / length
+    uniq, counts = np.unique(node_ids, return_counts=True)
+    if np.any(counts > 1):
+        raise ValueError(f"{name}: node(s) {uniq[counts > 1].tolist()} appear twice (duplicate DoFs)")
+    if nodes:
+        absent = [int(g) for g in node_ids if int(g) not in nodes]
+        if absent:
+            raise ValueError(f"{name}: node(s) {absent} are not defined in the node datasets (15/2411)")
+    dofs = [(int(g), c) for g in node_ids for c in range(1, n_comp + 1)]
+    column = dict(zip(dofs, values.reshape(-1)))
+    bad = [dof for dof, v in column.items() if not np.isfinite(v)]
+    if bad:
+        raise ValueError(f"{name}: value {column[bad[0]]} at DoF {_label(*bad[0])}")
+    return column
+
+
+def _mode_spectrum(r: dict, name: str, units: dict) -> tuple[float, float, float]:
+    """Natural frequency (Hz), viscous damping ratio and modal mass (SI; 0 for a complex mode) of one record."""
+    length = units["length"]
+    if r["analysis_type"] == _NORMAL_MODE:
+        return float(r["freq"]), float(r["modal_damp_vis"]), float(r["modal_m"]) * length / units["force"]
+    lam = complex(r["eig"])
+    if not (np.isfinite(lam) and abs(lam) > 0):
+        raise ValueError(f"{name}: eigenvalue {lam} is not finite and non-zero")
+    return abs(lam) / (2 * np.pi), -lam.real / abs(lam), 0.0
+
+
+def _shapes(columns: list[tuple[str, dict]]) -> tuple[np.ndarray, Sensors]:
+    """Mode-shape matrix (measured DoFs × modes) and its sensors; every mode must give every DoF."""
+    order = list(dict.fromkeys(dof for _, column in columns for dof in column))
+    for name, column in columns:
+        missing = [_label(*dof) for dof in order if dof not in column]
+        if missing:
+            raise ValueError(f"{name} lacks DoFs {missing} present in other modes (shapes must be complete)")
+    shapes = np.array([[column[dof] for _, column in columns] for dof in order])
+    measured = np.any(shapes != 0, axis=1)
+    sensors = Sensors.from_components([g for g, _ in order], [c for _, c in order])
+    sensors = Sensors(sensors.nodes[measured], sensors.directions[measured], sensors.rotational[measured])
+    return shapes[measured], sensors
 
 
 def _label(node: int, code: int) -> str:
@@ -119,10 +135,7 @@ def _frfs(records: list[tuple[int, dict]], units: dict, path: str, dof_map: dict
         func = int(r["func_type"])
         if func not in groups:
             continue
-        key = (int(r["rsp_node"]), int(r["rsp_dir"]), int(r["ref_node"]), int(r["ref_dir"]))
-        if key[1] == 0 or key[3] == 0 or abs(key[1]) > 6 or abs(key[3]) > 6:
-            unnamed = " (and no channel name for a DoF map)" if 0 in (key[1], key[3]) else ""
-            raise ValueError(f"{path}: dataset #{number}: direction codes {key[1]}, {key[3]} are not ±1..6{unnamed}")
+        key = _frf_key(number, r, path)
         name = f"dataset #{number} ({_label(key[0], key[1])} / {_label(key[2], key[3])})"
         if key in groups[func]:
             raise ValueError(f"{path}: {name} repeats {groups[func][key][0]}")
@@ -133,14 +146,7 @@ def _frfs(records: list[tuple[int, dict]], units: dict, path: str, dof_map: dict
             raise ValueError(f"{path}: {name} has a frequency axis different from {axis[0]}")
         data = np.asarray(r["data"])
         if func == _FRF:
-            record_kind = _FRF_SPEC_TYPES.get(int(r["ordinate_spec_data_type"]))
-            if record_kind is None:
-                raise ValueError(
-                    f"{path}: {name}: ordinate type {r['ordinate_spec_data_type']} is not displacement (8), "
-                    "velocity (11) or acceleration (12)"
-                )
-            if int(r["orddenom_spec_data_type"]) not in _FORCE_SPEC_TYPES:
-                raise ValueError(f"{path}: {name}: denominator type {r['orddenom_spec_data_type']} is not a force")
+            record_kind = _frf_kind(r, name, path)
             if kind is None:
                 kind = (name, record_kind)
             elif record_kind != kind[1]:
@@ -162,11 +168,11 @@ def _frfs(records: list[tuple[int, dict]], units: dict, path: str, dof_map: dict
     missing = [f"{_label(*o)} / {_label(*i)}" for o in outputs for i in inputs if o + i not in frfs]
     if missing:
         raise ValueError(f"{path}: FRFs missing for (output / input) pairs {missing}")
-    values = np.stack([np.stack([frfs[o + i][1] for i in inputs], axis=-1) for o in outputs], axis=1)
+    values = _stack(frfs, outputs, inputs)
     coh = None
     if coherence:
         if set(coherence) == set(frfs):
-            coh = np.stack([np.stack([coherence[o + i][1] for i in inputs], axis=-1) for o in outputs], axis=1)
+            coh = _stack(coherence, outputs, inputs)
         else:
             warnings.warn(f"{path}: coherence is not given for every FRF; ignored", stacklevel=3)
     sensors = [Sensors.from_components([g for g, _ in dofs], [c for _, c in dofs]) for dofs in (outputs, inputs)]
@@ -174,3 +180,30 @@ def _frfs(records: list[tuple[int, dict]], units: dict, path: str, dof_map: dict
         return FRFData(axis[1], values, sensors[0], sensors[1], kind[1], coherence=coh)
     except ValueError as err:
         raise ValueError(f"{path}: {err}") from err
+
+
+def _frf_key(number: int, r: dict, path: str) -> tuple[int, int, int, int]:
+    """(response node, direction, reference node, direction) of a dataset-58 record; codes must be ±1..6."""
+    key = (int(r["rsp_node"]), int(r["rsp_dir"]), int(r["ref_node"]), int(r["ref_dir"]))
+    if key[1] == 0 or key[3] == 0 or abs(key[1]) > 6 or abs(key[3]) > 6:
+        unnamed = " (and no channel name for a DoF map)" if 0 in (key[1], key[3]) else ""
+        raise ValueError(f"{path}: dataset #{number}: direction codes {key[1]}, {key[3]} are not ±1..6{unnamed}")
+    return key
+
+
+def _frf_kind(r: dict, name: str, path: str) -> str:
+    """FRF kind (receptance, mobility, accelerance) of a record of motion per unit force."""
+    record_kind = _FRF_SPEC_TYPES.get(int(r["ordinate_spec_data_type"]))
+    if record_kind is None:
+        raise ValueError(
+            f"{path}: {name}: ordinate type {r['ordinate_spec_data_type']} is not displacement (8), "
+            "velocity (11) or acceleration (12)"
+        )
+    if int(r["orddenom_spec_data_type"]) not in _FORCE_SPEC_TYPES:
+        raise ValueError(f"{path}: {name}: denominator type {r['orddenom_spec_data_type']} is not a force")
+    return record_kind
+
+
+def _stack(table: dict, outputs: list, inputs: list) -> np.ndarray:
+    """Array (frequencies × outputs × inputs) of the records keyed by output + input DoFs."""
+    return np.stack([np.stack([table[o + i][1] for i in inputs], axis=-1) for o in outputs], axis=1)

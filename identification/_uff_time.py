@@ -36,6 +36,30 @@ def _sampling(x: np.ndarray, where: str) -> tuple[float, float]:
     return float(dt), float(x[0])
 
 
+def _samples(r: dict, where: str) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """Abscissa, real ordinates, sample interval and start time of a time record; ``ValueError`` if unfit."""
+    if int(r["abscissa_spec_data_type"]) not in _TIME_AXIS_TYPES:
+        raise ValueError(f"{where}: abscissa specific data type {r['abscissa_spec_data_type']} is not "
+                         "time (17) (record 8, field 1)")
+    if int(r["ord_data_type"]) in _COMPLEX_ORDINATES or np.iscomplexobj(r["data"]):
+        raise ValueError(f"{where}: ordinate data type {r['ord_data_type']} is complex; a time history "
+                         "is real (record 7, field 1)")
+    x = np.asarray(r["x"], dtype=np.float64)
+    data = np.asarray(r["data"], dtype=np.float64)
+    if len(data) < 2 or len(x) != len(data):
+        raise ValueError(f"{where}: {len(data)} sample(s); a time history needs at least 2 "
+                         "(record 7, field 2)")
+    dt, t0 = _sampling(x, where)
+    return x, data, dt, t0
+
+
+def _si_factor(quantity: str, code: int, units: dict) -> float:
+    """Divisor to SI: force (× length for a moment), length for translational motion, 1 for rotation."""
+    if quantity == "force":
+        return units["force"] * (units["length"] if abs(code) > 3 else 1.0)
+    return units["length"] if abs(code) <= 3 else 1.0
+
+
 def _time_histories(records: list[tuple[int, dict]], units: dict, path: str, dof_map: dict | None = None):
     """:class:`TimeHistories` of the dataset-58 time records (function type 1), in SI, or None.
 
@@ -66,18 +90,7 @@ def _time_histories(records: list[tuple[int, dict]], units: dict, path: str, dof
         if quantity is None:
             ignored.setdefault(spec, []).append(number)
             continue
-        if int(r["abscissa_spec_data_type"]) not in _TIME_AXIS_TYPES:
-            raise ValueError(f"{path}: {where}: abscissa specific data type {r['abscissa_spec_data_type']} is not "
-                             "time (17) (record 8, field 1)")
-        if int(r["ord_data_type"]) in _COMPLEX_ORDINATES or np.iscomplexobj(r["data"]):
-            raise ValueError(f"{path}: {where}: ordinate data type {r['ord_data_type']} is complex; a time history "
-                             "is real (record 7, field 1)")
-        x = np.asarray(r["x"], dtype=np.float64)
-        data = np.asarray(r["data"], dtype=np.float64)
-        if len(data) < 2 or len(x) != len(data):
-            raise ValueError(f"{path}: {where}: {len(data)} sample(s); a time history needs at least 2 "
-                             "(record 7, field 2)")
-        dt, t0 = _sampling(x, f"{path}: {where}")
+        x, data, dt, t0 = _samples(r, f"{path}: {where}")
         if first is None:
             first = (where, len(data), dt, t0)
         elif len(data) != first[1]:
@@ -89,11 +102,7 @@ def _time_histories(records: list[tuple[int, dict]], units: dict, path: str, dof
         elif abs(t0 - first[3]) > 1e-3 * dt + _SAMPLING_RTOL * max(abs(t0), abs(first[3])):
             raise ValueError(f"{path}: {where} starts at {t0} s but {first[0]} at {first[3]} s: channels must be "
                              "sampled together (record 7, field 4)")
-        if quantity == "force":
-            factor = units["force"] * (units["length"] if abs(code) > 3 else 1.0)
-        else:
-            factor = units["length"] if abs(code) <= 3 else 1.0
-        data = data / factor
+        data = data / _si_factor(quantity, code, units)
         bad = np.flatnonzero(~np.isfinite(data))
         if len(bad):
             raise ValueError(f"{path}: {where}: value {data[bad[0]]} at sample {bad[0]} ({x[bad[0]]} s)")

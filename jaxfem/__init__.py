@@ -68,3 +68,6 @@ from ._sparse import pattern as sparse_pattern
 from ._sparse import resolve_backend as resolve_sparse_backend
 from ._structural_damping import stiffness_ids as stiffness_ids
 from ._structural_damping import with_k_scale as with_k_scale
+from ._reduction import guyan as guyan
+from ._reduction import serep as serep
+from ._modes import SOLVERS as EIGENSOLVERS

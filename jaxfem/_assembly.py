@@ -53,7 +53,6 @@ def node_transform(model: Model, nodes: np.ndarray) -> tuple[np.ndarray, np.ndar
     return t, model.dofs.index[nodes][..., cols].reshape(n_el, nn * w)
 
 
-_node_transform = node_transform  # the former private name, still imported by updating
 
 
 def _spring_transform(model: Model) -> tuple[np.ndarray, np.ndarray]:

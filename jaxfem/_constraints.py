@@ -21,6 +21,8 @@ _SINGULAR_RTOL = 1e-10  # RBE3: eigenvalue of the scaled GᵀWG below rtol·larg
 
 # One term of a dependent DoF: ((grid, component), coefficient, field of the card it comes from)
 _Term = tuple[tuple[int, int], float, str]
+# (grid, component) of a dependent DoF -> (the card that makes it dependent, its terms)
+_Dependent = dict[tuple[int, int], tuple[Card, list[_Term]]]
 
 
 def _components(code: int) -> list[int]:
@@ -181,46 +183,7 @@ def _dof_map(bulk: BulkData, grids: _Grids, spc_set: int | None, mpc_set: int | 
     apply; ``None`` takes the only set in the file (an error if there are several).
     """
     fixed = _constraints(bulk, grids, spc_set)
-    dependent: dict[tuple[int, int], tuple[Card, list[_Term]]] = {}
-
-    def depend(card: Card, key: str, g: int, c: int, terms: list[_Term]) -> None:
-        if (g, c) in fixed:
-            other = fixed[(g, c)]
-            raise card.error(
-                key, f"grid {g} component {c} is both {card.name}-dependent and constrained by "
-                f"{other.name} at {other.file}:{other.line}",
-            )
-        if (g, c) in dependent:
-            other = dependent[(g, c)][0]
-            raise card.error(
-                key,
-                f"grid {g} component {c} is already dependent on {other.name} {other.id} at {other.file}:{other.line}",
-            )
-        dependent[(g, c)] = (card, terms)
-
-    for card in _by_id(bulk["RBE2"]):
-        grids(card, "GN")
-        for g in card["GM"]:
-            grids(card, "GM", g)
-            if g == card["GN"]:
-                raise card.error("GM", f"grid {g} is both the independent grid GN and a dependent grid")
-            for c in _components(card["CM"]):
-                depend(card, "CM", g, c, _rbe2_terms(card, grids, g, c))
-    for card in _by_id(bulk["RBE3"]):
-        t, entries = _rbe3_matrix(card, grids)
-        for c in _components(card["REFC"]):
-            terms = [((g, e), float(a), key) for (g, e, key), a in zip(entries, t[c - 1]) if a != 0.0]
-            depend(card, "REFC", card["REFGRID"], c, terms)
-    mpc = _selected(bulk, ("MPC",), mpc_set, "mpc_set")
-    for card in bulk["MPC"]:
-        if card["SID"] != mpc:
-            continue
-        for k, (g, _, _) in enumerate(card["TERMS"], 1):
-            grids(card, f"G{k}", g)
-        (g1, c1, a1), *others = card["TERMS"]
-        terms = [((g, c), -a / a1, f"G{k}") for k, (g, c, a) in enumerate(others, 2) if a != 0.0]
-        depend(card, "G1", g1, c1, terms)
-
+    dependent = _dependents(bulk, grids, fixed, mpc_set)
     labels = [
         (int(g), c)
         for g in grids.ids
@@ -229,69 +192,9 @@ def _dof_map(bulk: BulkData, grids: _Grids, spc_set: int | None, mpc_set: int | 
     ]
     number = {label: i for i, label in enumerate(labels)}
     rows: dict[tuple[int, int], dict[int, float]] = {}
-
-    def known(dof: tuple[int, int]) -> dict[int, float] | None:
-        """Coefficients of an independent, constrained or already expanded DoF, else None."""
-        if dof in rows:
-            return rows[dof]
-        if dof in number:
-            return {number[dof]: 1.0}
-        return {} if dof in fixed else None
-
-    def row(g: int, c: int) -> dict[int, float]:
-        """Coefficients of (grid g, component c) on the independent DoFs: a depth-first
-        expansion with an explicit stack (a chain of rigid elements may be as long as the
-        file). ``path`` holds the dependent DoFs being expanded, ``keys[i]`` the field
-        followed from ``path[i]`` to ``path[i + 1]``, ``todo[i]`` the terms of ``path[i]``
-        not yet looked at."""
-        done = known((g, c))
-        if done is not None:
-            return done
-        path, keys, todo = [(g, c)], [], [iter(dependent[(g, c)][1])]
-        on_path = {(g, c): 0}
-        while path:
-            for (h, e), _, key in todo[-1]:
-                if known((h, e)) is not None:
-                    continue
-                if (h, e) in on_path:  # a loop: from (h, e) along the path back to it
-                    i = on_path[(h, e)]
-                    path_text = " -> ".join(
-                        f"{other.name} {other.id} at {other.file}:{other.line} (grid {d[0]} component {d[1]})"
-                        for d in path[i:] + [(h, e)]
-                        for other in (dependent[d][0],)
-                    )
-                    raise dependent[(h, e)][0].error(
-                        (keys + [key])[i], f"rigid elements/MPCs depend on each other in a loop: {path_text}"
-                    )
-                on_path[(h, e)] = len(path)
-                path.append((h, e))
-                keys.append(key)
-                todo.append(iter(dependent[(h, e)][1]))
-                break
-            else:  # every term of path[-1] is known: combine them
-                dof = path.pop()
-                out: dict[int, float] = {}
-                for term, a, _ in dependent[dof][1]:
-                    for d, value in known(term).items():
-                        out[d] = out.get(d, 0.0) + a * value
-                rows[dof] = out
-                todo.pop()
-                del on_path[dof]
-                if keys:
-                    keys.pop()
-        return rows[(g, c)]
-
-    node_rows = [[row(int(g), c) for c in range(1, COMPONENTS + 1)] for g in grids.ids]
-    used = [sorted(set().union(*r)) for r in node_rows]
-    w = max((len(u) for u in used), default=0)
+    node_rows = [[_row(int(g), c, dependent, fixed, number, rows) for c in range(1, COMPONENTS + 1)] for g in grids.ids]
     n_dof = len(labels)
-    index = np.full((len(used), w), n_dof, dtype=np.int64)
-    coef = np.zeros((len(used), COMPONENTS, w))
-    for n, (dofs, comps) in enumerate(zip(used, node_rows)):
-        index[n, : len(dofs)] = dofs
-        for c, coefficients in enumerate(comps):
-            for k, dof in enumerate(dofs):
-                coef[n, c, k] = coefficients.get(dof, 0.0)
+    index, coef = _node_arrays(node_rows, n_dof)
     return DofMap(
         index=index,
         coef=coef,
@@ -300,3 +203,122 @@ def _dof_map(bulk: BulkData, grids: _Grids, spc_set: int | None, mpc_set: int | 
         auto_spc=np.zeros((0, 2), dtype=np.int64),
         n_dof=n_dof,
     )
+
+
+def _depend(dependent: _Dependent, fixed: dict[tuple[int, int], Card], card: Card, key: str, g: int, c: int,
+            terms: list[_Term]) -> None:
+    """Make (g, c) dependent on ``card`` through ``terms``; a constrained or already dependent DoF is an error."""
+    if (g, c) in fixed:
+        other = fixed[(g, c)]
+        raise card.error(
+            key, f"grid {g} component {c} is both {card.name}-dependent and constrained by "
+            f"{other.name} at {other.file}:{other.line}",
+        )
+    if (g, c) in dependent:
+        other = dependent[(g, c)][0]
+        raise card.error(
+            key,
+            f"grid {g} component {c} is already dependent on {other.name} {other.id} at {other.file}:{other.line}",
+        )
+    dependent[(g, c)] = (card, terms)
+
+
+def _dependents(bulk: BulkData, grids: _Grids, fixed: dict[tuple[int, int], Card], mpc_set: int | None) -> _Dependent:
+    """(grid, component) -> (card, terms) of every DoF made dependent by an RBE2, RBE3 or MPC of the selected set."""
+    dependent: _Dependent = {}
+    for card in _by_id(bulk["RBE2"]):
+        grids(card, "GN")
+        for g in card["GM"]:
+            grids(card, "GM", g)
+            if g == card["GN"]:
+                raise card.error("GM", f"grid {g} is both the independent grid GN and a dependent grid")
+            for c in _components(card["CM"]):
+                _depend(dependent, fixed, card, "CM", g, c, _rbe2_terms(card, grids, g, c))
+    for card in _by_id(bulk["RBE3"]):
+        t, entries = _rbe3_matrix(card, grids)
+        for c in _components(card["REFC"]):
+            terms = [((g, e), float(a), key) for (g, e, key), a in zip(entries, t[c - 1]) if a != 0.0]
+            _depend(dependent, fixed, card, "REFC", card["REFGRID"], c, terms)
+    mpc = _selected(bulk, ("MPC",), mpc_set, "mpc_set")
+    for card in bulk["MPC"]:
+        if card["SID"] != mpc:
+            continue
+        for k, (g, _, _) in enumerate(card["TERMS"], 1):
+            grids(card, f"G{k}", g)
+        (g1, c1, a1), *others = card["TERMS"]
+        terms = [((g, c), -a / a1, f"G{k}") for k, (g, c, a) in enumerate(others, 2) if a != 0.0]
+        _depend(dependent, fixed, card, "G1", g1, c1, terms)
+    return dependent
+
+
+def _known(dof: tuple[int, int], rows: dict[tuple[int, int], dict[int, float]], number: dict[tuple[int, int], int],
+           fixed: dict[tuple[int, int], Card]) -> dict[int, float] | None:
+    """Coefficients of an independent, constrained or already expanded DoF, else None."""
+    if dof in rows:
+        return rows[dof]
+    if dof in number:
+        return {number[dof]: 1.0}
+    return {} if dof in fixed else None
+
+
+def _loop_error(dependent: _Dependent, path: list[tuple[int, int]], keys: list[str], i: int,
+                dof: tuple[int, int]) -> BulkDataError:
+    """The located error of a dependency loop: from ``dof`` = ``path[i]`` along the path back to it."""
+    path_text = " -> ".join(
+        f"{other.name} {other.id} at {other.file}:{other.line} (grid {d[0]} component {d[1]})"
+        for d in path[i:] + [dof]
+        for other in (dependent[d][0],)
+    )
+    return dependent[dof][0].error(keys[i], f"rigid elements/MPCs depend on each other in a loop: {path_text}")
+
+
+def _row(g: int, c: int, dependent: _Dependent, fixed: dict[tuple[int, int], Card], number: dict[tuple[int, int], int],
+         rows: dict[tuple[int, int], dict[int, float]]) -> dict[int, float]:
+    """Coefficients of (grid g, component c) on the independent DoFs, stored in ``rows``: a depth-first
+    expansion with an explicit stack (a chain of rigid elements may be as long as the
+    file). ``path`` holds the dependent DoFs being expanded, ``keys[i]`` the field
+    followed from ``path[i]`` to ``path[i + 1]``, ``todo[i]`` the terms of ``path[i]``
+    not yet looked at."""
+    done = _known((g, c), rows, number, fixed)
+    if done is not None:
+        return done
+    path, keys, todo = [(g, c)], [], [iter(dependent[(g, c)][1])]
+    on_path = {(g, c): 0}
+    while path:
+        for (h, e), _, key in todo[-1]:
+            if _known((h, e), rows, number, fixed) is not None:
+                continue
+            if (h, e) in on_path:  # a loop: from (h, e) along the path back to it
+                raise _loop_error(dependent, path, keys + [key], on_path[(h, e)], (h, e))
+            on_path[(h, e)] = len(path)
+            path.append((h, e))
+            keys.append(key)
+            todo.append(iter(dependent[(h, e)][1]))
+            break
+        else:  # every term of path[-1] is known: combine them
+            dof = path.pop()
+            out: dict[int, float] = {}
+            for term, a, _ in dependent[dof][1]:
+                for d, value in _known(term, rows, number, fixed).items():
+                    out[d] = out.get(d, 0.0) + a * value
+            rows[dof] = out
+            todo.pop()
+            del on_path[dof]
+            if keys:
+                keys.pop()
+    return rows[(g, c)]
+
+
+def _node_arrays(node_rows: list[list[dict[int, float]]], n_dof: int) -> tuple[np.ndarray, np.ndarray]:
+    """``index`` (nodes × w, padded with ``n_dof``) and ``coef`` (nodes × 6 × w) of :class:`DofMap` from each
+    node's component rows."""
+    used = [sorted(set().union(*r)) for r in node_rows]
+    w = max((len(u) for u in used), default=0)
+    index = np.full((len(used), w), n_dof, dtype=np.int64)
+    coef = np.zeros((len(used), COMPONENTS, w))
+    for n, (dofs, comps) in enumerate(zip(used, node_rows)):
+        index[n, : len(dofs)] = dofs
+        for c, coefficients in enumerate(comps):
+            for k, dof in enumerate(dofs):
+                coef[n, c, k] = coefficients.get(dof, 0.0)
+    return index, coef

@@ -234,7 +234,16 @@ def _ritz_jvp(primals, tangents, *, solution, index, structure, rtol, refine_tol
     coef = jnp.where(own, -0.5 * jnp.sum(phi_r * gm[:, index], axis=0)[None, :], coef)
     dphi = phi_m @ coef
     # The rest z_r, M-orthogonal to the converged modes: (K − λ_r M) z_r = b_r.
-    b = h - M.matmul(phi_m @ c)
+    z = _rest(K, M, solution, lam_r, h - M.matmul(phi_m @ c), refine_tol, max_refine)
+    return (lam_r, phi_r), (dlam_m[index], dphi + z)
+
+
+def _rest(K, M, solution, lam_r, b, refine_tol, max_refine):
+    """The part z_r of each mode derivative outside the converged modes, M-orthogonal to
+    them: (K − λ_r M) z_r = b_r, by preconditioned conjugate gradients (a host factor's
+    own solve where the solution has one), as a transposable symmetric linear solve."""
+    m = solution.n_modes
+    lam, V = solution.lam, solution.basis
     U, lam_u = V[:, m:], lam[m:]
 
     def precondition(r):
@@ -272,5 +281,4 @@ def _ritz_jvp(primals, tangents, *, solution, index, structure, rtol, refine_tol
         return jax.lax.while_loop(cond, body, start)[1]
 
     # a symmetric linear solve: transposable, so that reverse mode (jax.grad) works too
-    z = jax.lax.custom_linear_solve(operator, b, solve, symmetric=True)
-    return (lam_r, phi_r), (dlam_m[index], dphi + z)
+    return jax.lax.custom_linear_solve(operator, b, solve, symmetric=True)

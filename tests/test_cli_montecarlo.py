@@ -15,7 +15,9 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from updating import _montecarlo, _montecarlo_plots
+import updating.studies as studies
+from updating.report import _montecarlo_plots
+from updating.studies import _montecarlo
 from updating.cli import app
 
 runner = CliRunner()
@@ -55,7 +57,7 @@ def study(tmp_path_factory):
     args = ["montecarlo", str(d / "study.toml"), "--json", str(d / "mc.json"), "--plots", str(d / "plots"),
             "--devices", "1"]
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(_montecarlo, "Runner", shared)
+        mp.setattr(studies, "Runner", shared)
         yield d, args, runner.invoke(app, args)
 
 
@@ -123,8 +125,6 @@ def test_ray_option_reaches_montecarlo_ray(study, monkeypatch):
     (start a cluster here), ``--ray ADDRESS`` with it; a cluster that cannot be reached
     exits 2 naming the address. (The Ray run itself is tested in test_ray.py; here it is
     replaced by the in-process study, which must give the same statistics.)"""
-    from updating import _ray
-
     d, _, first = study
     assert first.exit_code == 0, first.output
     seen = []
@@ -135,7 +135,7 @@ def test_ray_option_reaches_montecarlo_ray(study, monkeypatch):
             raise ConnectionError(f"could not reach {address}")
         return _montecarlo.montecarlo(study_, out=out, progress=progress, runner=runner)
 
-    monkeypatch.setattr(_ray, "montecarlo_ray", fake)
+    monkeypatch.setattr(studies, "montecarlo_ray", fake)
     base = ["montecarlo", str(d / "study.toml"), "--json", str(d / "ray.json"), "--devices", "1"]
     ok = runner.invoke(app, base + ["--ray", "local"])
     assert ok.exit_code == 0, ok.output

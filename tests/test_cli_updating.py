@@ -18,7 +18,7 @@ from identification import FRFData, ModalData, Sensors, observation_matrix, read
 from jaxfem.io import read_bdf
 from updating import n_model_modes, pair_modes, predict_frf
 from updating._parameters import Parameter, ParameterSet, parameterise
-from updating._plots import plot_freq_dev, plot_mac
+from updating.report._plots import plot_freq_dev, plot_mac
 from updating.cli import app
 
 runner = CliRunner()

@@ -322,3 +322,68 @@ def test_pairing_rejects_bad_shapes():
         pair_modes(f_a, phi_a, f_a[:3], phi_a)
     with pytest.raises(ValueError, match="share the DoFs"):
         pair_modes_masked(f_a, phi_a, f_a, phi_a[:10])
+
+
+# --- The correlation workflow (updating.correlate) ---------------------------------------
+
+
+def test_correlate_returns_typed_result_and_the_cli_json(tmp_path):
+    """``updating.correlate`` on a small frame against its own modes, shifted in frequency
+    and with noisy shapes: typed attributes, and ``to_json()`` is what ``jaxfem correlate
+    --json`` writes."""
+    import dataclasses
+    import json
+
+    from typer.testing import CliRunner
+
+    import jaxfem
+    import updating
+    from benchmarks.frames import frame_bdf
+    from identification import (
+        ModalData,
+        Pairing,
+        Sensors,
+        map_test_geometry,
+        observation_matrix,
+        read_uff,
+        write_uff,
+    )
+    from jaxfem.io import read_bdf
+    from updating.cli import app
+
+    bdf, uff, out = tmp_path / "frame.bdf", tmp_path / "test.uff", tmp_path / "correlate.json"
+    bdf.write_text(frame_bdf(2, 2, 2, n_groups=2))
+    model = jaxfem.build_model(read_bdf(bdf))
+    free = np.asarray([g for g in np.asarray(model.node_ids).tolist() if g > 4])  # above the clamped base
+    sensors = Sensors.from_components(np.repeat(free, 2), np.tile([1, 2], free.size))
+    lam, phi = jaxfem.eigh(*jaxfem.assemble(model), 5)
+    shapes = observation_matrix(model, sensors)[0] @ np.asarray(phi)
+    shapes = shapes + 0.01 * np.abs(shapes).max(axis=0) * np.random.default_rng(3).standard_normal(shapes.shape)
+    test = ModalData(np.asarray(jaxfem.frequencies_hz(lam)) * np.array([1.02, 0.97, 1.05, 1.0, 0.99]), shapes, sensors)
+    write_uff(uff, nodes={int(g): np.asarray(x) for g, x in zip(model.node_ids, model.xyz)}, modes=test)
+
+    cli = CliRunner().invoke(app, ["correlate", str(bdf), str(uff), "--json", str(out)])
+    assert cli.exit_code == 0, cli.output
+
+    # the library on what the CLI reads: the test nodes mapped onto the model, real modes
+    content = read_uff(uff)
+    mapped, gmap = map_test_geometry(model, content["nodes"], set(free.tolist()), method="auto",
+                                     length_factor=content["units"]["length"])
+    res = updating.correlate(mapped, gmap.apply(content["modes"].real()), model_name=str(bdf), test_name=str(uff),
+                             geometry=gmap)
+    assert isinstance(res, updating.CorrelationResult) and isinstance(res.pairing, Pairing)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        res.max_automac = 0.5
+    n_a, n_s = updating.n_model_modes(model, 5), len(sensors)
+    assert res.n_model_modes == n_a and res.model_frequencies_hz.shape == (n_a,)
+    assert res.model_at_sensors.shape == (n_s, n_a) and res.model_shapes.shape == (mapped.n_dof, n_a)
+    assert res.test_shapes.shape == (n_s, 5) and res.sensors == tuple(sensors.labels)
+    assert res.n_paired == 5 and res.warnings == () and res.pairing.min_mac == updating.Options.min_mac
+    assert res.rms_freq_dev_pct == pytest.approx(100 * np.sqrt(np.mean(res.pairing.freq_dev ** 2)))
+    assert res.mean_mac == pytest.approx(np.mean(res.pairing.mac)) and res.mean_mac > 0.95
+    assert res.automac.shape == (5, 5) and np.allclose(np.diag(res.automac), 1.0)
+    assert res.comac.shape == (n_s,) and [v for _, v in res.comac_ranking] == sorted(res.comac.tolist())
+    assert isinstance(res.aliasing, tuple)
+    assert json.loads(json.dumps(updating.json_safe(res.to_json()))) == json.loads(out.read_text())
+    with pytest.raises(ValueError, match="max_automac"):
+        updating.correlate(mapped, test, max_automac=1.5)

@@ -15,8 +15,8 @@ import pytest
 import jaxfem
 from benchmarks import damage_demo as dd
 from identification import ModalData, Sensors, observation_matrix
-from updating import LocalDamping, diagnose_damping, parse_effect
-from updating._damping import regions
+from updating import LocalDamping, Noise, diagnose_damping, parse_effect
+from updating.diagnosis._damping import regions
 
 LOSS_ELEMENT, LOSS = 7, 0.15  # the truth: a loss factor in one element of the cantilever, no stiffness change
 
@@ -119,9 +119,9 @@ def test_a_local_loss_factor_is_found_from_frfs(beam, tmp_path):
     assert (tmp_path / "report/damping.png").exists()
 
     f0, zeta0, _ = _identified(model, mu, kappa, ())
-    control = diagnose_damping(model, ModalData(f0, test.shapes, sensors, damping_ratios=zeta0), noise=noise)
-    assert control.report["outcome"] == "none_needed" and control.effect is None
-    assert control.report["baseline"]["heldout_rms_zeta_dev_pct"] < 2 * 100 * noise
+    control = diagnose_damping(model, ModalData(f0, test.shapes, sensors, damping_ratios=zeta0), noise=Noise(damping=noise))
+    assert control.outcome == "none_needed" and control.effect is None
+    assert control.baseline.heldout_rms_zeta_dev_pct < 2 * 100 * noise
 
 
 def test_bad_damping_input_is_refused(beam):
@@ -129,8 +129,8 @@ def test_bad_damping_input_is_refused(beam):
     sensors = Sensors.from_components([21], [2])
     few = ModalData(np.array([10.0, 60.0, 170.0, 330.0]), np.ones((1, 4)), sensors,
                     damping_ratios=np.array([0.01, 0.0, 0.01, 0.0]))
-    with pytest.raises(ValueError, match="noise must be a positive"):
-        diagnose_damping(model, few, noise=0.0)
+    with pytest.raises(ValueError, match="noise.damping must be a positive"):
+        diagnose_damping(model, few, noise=Noise(damping=0.0))
     with pytest.raises(ValueError, match="at least 4 modes, got 2"):
         diagnose_damping(model, few)
     far = ModalData(np.array([1e3, 2e3, 3e3, 4e3]) * 50, np.ones((1, 4)), sensors, damping_ratios=np.full(4, 0.01))
@@ -167,8 +167,8 @@ def test_a_viscoelastic_patch_on_the_cfrp_panel_is_found():
     noisy = zeta[sel] * (1 + 0.02 * np.random.default_rng(0).standard_normal(len(sel)))
     noise = 0.05
     found = diagnose_damping(model, ModalData(f[sel], np.asarray(C) @ phi[:, sel], sensors, damping_ratios=noisy),
-                             noise=noise)
-    top = found.report["effects"][0]
+                             noise=Noise(damping=noise))
+    top = found.regions[0]
     assert found.effect is not None and set(found.effect.eids) == set(true.tolist())
-    assert abs(top["eta"] - 0.3) < 0.05 * 0.3 and top["posterior"] > 0.95
-    assert top["heldout_rms_zeta_dev_pct_after"] < 2 * 100 * noise < top["heldout_rms_zeta_dev_pct_before"]
+    assert abs(top.eta - 0.3) < 0.05 * 0.3 and top.posterior > 0.95
+    assert top.heldout_rms_zeta_dev_pct_after < 2 * 100 * noise < top.heldout_rms_zeta_dev_pct_before

@@ -12,9 +12,9 @@ from benchmarks.frames import frame_bdf
 from identification import ModalData, Sensors, observation_matrix
 from jaxfem.io import read_bdf_text
 from updating import Options, Parameter, ParameterSet
-from updating._diagnose import DiagnoseOptions, add_effect, diagnose
-from updating._effects import Effect, at_reference
-from updating._topology import elements_at, halves
+from updating.diagnosis import DiagnoseOptions, add_effect, diagnose
+from updating.diagnosis._effects import Effect, at_reference
+from updating.diagnosis._topology import elements_at, halves
 
 NOISE_F, NOISE_S = 0.002, 0.01  # 0.2 % on frequencies, 1 % on shape components
 N_MODES = 12
@@ -61,10 +61,10 @@ def test_joint(frame):
     start = at_reference(model, Effect("joint", pids=pids, nodes=(node,)), [20.0])
     truth = Effect("joint", pids=pids, nodes=(node,),
                    values={"k_trans": start.values["k_trans"], "k_rot": start.values["k_rot"] / 100}).apply(model)
-    # the candidates fitted on reduced models (updating._reduced), as on a large model
+    # the candidates fitted on reduced models (updating.diagnosis._reduced), as on a large model
     d = diagnose(model, measure(truth, sensors), options=_opts(reduce_above=0))
-    assert (top(d.report)["kind"], top(d.report)["nodes"]) == ("joint", [node])
-    assert_fixed(d.report)
+    assert (top(d.to_json())["kind"], top(d.to_json())["nodes"]) == ("joint", [node])
+    assert_fixed(d.to_json())
 
 
 def test_boundary_spring(frame):
@@ -73,8 +73,8 @@ def test_boundary_spring(frame):
     truth = Effect("boundary_spring", nodes=(2,),
                    values={"k_trans": start.values["k_trans"], "k_rot": start.values["k_rot"] / 100}).apply(model)
     d = diagnose(model, measure(truth, sensors), options=_opts())
-    assert (top(d.report)["kind"], top(d.report)["nodes"]) == ("boundary_spring", [2])
-    assert_fixed(d.report)
+    assert (top(d.to_json())["kind"], top(d.to_json())["nodes"]) == ("boundary_spring", [2])
+    assert_fixed(d.to_json())
 
 
 def test_stiffness_of_half_a_group(frame):
@@ -89,17 +89,17 @@ def test_stiffness_of_half_a_group(frame):
     split = Effect("stiffness", pids=(1,), eids=tuple(int(e) for e in eids), label=label)
     truth = jaxfem.correct(model, [list(split.eids)], jnp.array([-0.3]))
     d = diagnose(model, measure(truth, sensors), options=_opts())
-    assert (top(d.report)["kind"], top(d.report)["eids"]) == ("stiffness", list(split.eids))
-    assert top(d.report)["parameters"]["alpha"] == pytest.approx(-0.3, abs=0.05)
-    assert_fixed(d.report)
+    assert (top(d.to_json())["kind"], top(d.to_json())["eids"]) == ("stiffness", list(split.eids))
+    assert top(d.to_json())["parameters"]["alpha"] == pytest.approx(-0.3, abs=0.05)
+    assert_fixed(d.to_json())
 
 
 def test_mass_of_a_group(frame):
     model, sensors = frame
     truth = jaxfem.correct(model, (), None, [model.element_ids(pids=[7]).tolist()], jnp.array([0.4]))
     d = diagnose(model, measure(truth, sensors), options=_opts())
-    assert (top(d.report)["kind"], top(d.report)["pids"], top(d.report)["eids"]) == ("mass", [7], [])
-    assert_fixed(d.report)
+    assert (top(d.to_json())["kind"], top(d.to_json())["pids"], top(d.to_json())["eids"]) == ("mass", [7], [])
+    assert_fixed(d.to_json())
 
 
 def test_frequency_dependent_stiffness_and_the_thesis_lesson(frame):
@@ -110,13 +110,13 @@ def test_frequency_dependent_stiffness_and_the_thesis_lesson(frame):
     law = Effect("frequency_dependent_stiffness", pids=(3,), values={"alpha": 0.0, "a": 0.2, "f_ref_hz": 60.0})
     test = measure(law.apply(model), sensors)
     d = diagnose(model, test, options=_opts())
-    assert (top(d.report)["kind"], top(d.report)["pids"]) == ("frequency_dependent_stiffness", [3])
-    fitted = top(d.report)["parameters"]  # E0 (1 + α)(1 + a ln(f/f_ref)): slope (1 + α) a per unit ln f
+    assert (top(d.to_json())["kind"], top(d.to_json())["pids"]) == ("frequency_dependent_stiffness", [3])
+    fitted = top(d.to_json())["parameters"]  # E0 (1 + α)(1 + a ln(f/f_ref)): slope (1 + α) a per unit ln f
     assert fitted["a"] * (1 + fitted["alpha"]) == pytest.approx(0.2, abs=0.03)
-    assert_fixed(d.report)
+    assert_fixed(d.to_json())
     passive = tuple(range(7, N_MODES + 1))  # fit on the 6 lowest modes, predict the 6 highest
-    constant = add_effect(model, test, Effect("stiffness", pids=(3,)), passive_modes=passive).report
-    dependent = add_effect(model, test, Effect("frequency_dependent_stiffness", pids=(3,)), passive_modes=passive).report
+    constant = add_effect(model, test, Effect("stiffness", pids=(3,)), passive_modes=passive).to_json()
+    dependent = add_effect(model, test, Effect("frequency_dependent_stiffness", pids=(3,)), passive_modes=passive).to_json()
     assert constant["rms_freq_dev_pct_active_after"] < 0.6 * constant["rms_freq_dev_pct_active_before"]
     assert constant["rms_freq_dev_pct_passive_after"] > constant["rms_freq_dev_pct_passive_before"]
     for key in ("rms_freq_dev_pct_active_after", "rms_freq_dev_pct_passive_after"):
@@ -130,17 +130,17 @@ def test_parameter_errors_alone_claim_no_effect(frame):
                            jnp.array([-0.15, 0.1]))
     params = ParameterSet((Parameter("g2", "stiffness", pids=(2,)), Parameter("g5", "stiffness", pids=(5,))), Options())
     d = diagnose(model, measure(truth, sensors), params, options=_opts())
-    assert d.report["no_effect_warranted"] and d.best is None
-    alpha = [p["alpha"] for p in d.report["baseline"]["parameters"]]
+    assert d.to_json()["no_effect_warranted"] and d.best is None
+    alpha = [p["alpha"] for p in d.to_json()["baseline"]["parameters"]]
     np.testing.assert_allclose(alpha, [-0.15, 0.1], atol=0.02)
 
 
 def test_pure_noise_claims_no_effect(frame):
     model, sensors = frame
     d = diagnose(model, measure(model, sensors, seed=7), options=_opts())
-    assert d.report["no_effect_warranted"]
-    assert d.report["baseline"]["chi2_per_row"] < 2.0  # the nominal model already fits to noise level
-    assert "No extra effect" in d.report["verdict"]
+    assert d.to_json()["no_effect_warranted"]
+    assert d.to_json()["baseline"]["chi2_per_row"] < 2.0  # the nominal model already fits to noise level
+    assert "No extra effect" in d.to_json()["verdict"]
 
 
 def _opts(**kw):

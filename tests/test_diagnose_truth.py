@@ -18,7 +18,7 @@ from updating import diagnose
 @pytest.mark.parametrize("case", CASES, ids=lambda c: c.name)
 def test_hidden_effect_from_an_independent_truth(case):
     text, _, _, _ = nominal(case)
-    report = diagnose(jaxfem.build_model(read_bdf_text(text)), measure(case), parameters(case)).report
+    report = diagnose(jaxfem.build_model(read_bdf_text(text)), measure(case), parameters(case)).to_json()
     assert found(report, case), report["verdict"]
     if case.kind is None:
         assert report["outcome"] == "none_needed" and "No extra effect" in report["verdict"]

@@ -13,7 +13,7 @@ import jaxfem
 from benchmarks.frames import frame_bdf
 from jaxfem.io import read_bdf_text
 from updating import AbstractEffect
-from updating._effects import (
+from updating.diagnosis._effects import (
     KINDS,
     AddedMass,
     BoundarySpring,
@@ -26,7 +26,7 @@ from updating._effects import (
     parse_effect,
 )
 from updating._parameters import Parameter, parameterise
-from updating._topology import elements_at, stiffness_pids, structural_pids, total_mass
+from updating.diagnosis._topology import elements_at, stiffness_pids, structural_pids, total_mass
 
 
 @pytest.fixture(scope="module")

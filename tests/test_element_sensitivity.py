@@ -1,4 +1,4 @@
-"""Element sensitivities of the residual (updating._element_sensitivity): every element's
+"""Element sensitivities of the residual (updating.diagnosis._element_sensitivity): every element's
 stiffness and mass scale against forward mode through the eigensolver's own derivative
 rule, shell parts and non-structural mass against central finite differences, the sparse
 path (lowest modes + static correction) against the dense one."""
@@ -16,7 +16,7 @@ from identification import Sensors
 from jaxfem import MASS_BLOCKS, STIFFNESS_BLOCKS
 from jaxfem.io import read_bdf_text
 from updating import Options, ParameterSet
-from updating._element_sensitivity import element_jacobian
+from updating.diagnosis._element_sensitivity import element_jacobian
 from updating._residuals import residuals
 from updating._simulation import simulate_test
 from updating._solve import build_problem
@@ -130,7 +130,7 @@ def test_sparse_path_matches_dense(laminate_plate):
 def test_columns_do_not_depend_on_the_signs_of_a_second_solve(laminate_plate, monkeypatch):
     """The screen's full-length modes signed otherwise than the residual's (ARPACK returns
     any of them negated from one call to the next) must not flip their eigenvector rows."""
-    from updating import _element_sensitivity
+    from updating.diagnosis import _element_sensitivity
 
     model, truth, sensors = laminate_plate
     problem = _problem(model, truth, sensors, 10, "sparse")

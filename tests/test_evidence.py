@@ -2,9 +2,11 @@
 marginal likelihood of a linear-Gaussian model, and the verdict's three outcomes."""
 
 import numpy as np
+
+import updating
 import pytest
 
-from updating._evidence import log_evidence, verdict
+from updating.diagnosis._evidence import log_evidence
 
 
 def test_laplace_is_exact_for_a_linear_gaussian_model():
@@ -18,7 +20,7 @@ def test_laplace_is_exact_for_a_linear_gaussian_model():
     H = A.T @ A / sigma2 + P
     theta = np.linalg.solve(H, A.T @ y / sigma2 + P @ mu)  # the posterior mode
     r = y - A @ theta
-    lz, occam, post_sd = log_evidence({"cost": float(r @ r), "jac": -A, "theta": theta}, mu, sd, sigma2)
+    lz, occam, post_sd = log_evidence(theta, float(r @ r), -A, mu, sd, sigma2)
     # exact: y ~ N(Aμ, σ²I + A S Aᵀ); drop −(n/2) ln(2πσ²) as log_evidence does
     C = sigma2 * np.eye(40) + A @ np.diag(sd ** 2) @ A.T
     d = y - A @ mu
@@ -26,27 +28,35 @@ def test_laplace_is_exact_for_a_linear_gaussian_model():
     assert lz == pytest.approx(exact, rel=1e-10)
     assert occam == pytest.approx(lz + 0.5 * r @ r / sigma2, rel=1e-12)
     np.testing.assert_allclose(post_sd, np.sqrt(np.diag(np.linalg.inv(H))), rtol=1e-10)
-    assert log_evidence({"cost": np.inf}, mu, sd, sigma2)[0] == -np.inf  # a failed fit ranks last
+    assert log_evidence(None, np.inf, None, mu, sd, sigma2)[0] == -np.inf  # a failed fit ranks last
 
 
-def _report(outcome, chi2_base, effects=(), ties=()):
-    return {"outcome": outcome, "ties": list(ties), "effects": list(effects),
-            "baseline": {"chi2_per_row": chi2_base, "heldout_rms_freq_dev_pct": 0.9}}
+def _result(where="node 214", chi2=1.1, log_z=250.0):
+    from updating.diagnosis import AddedMass, CandidateResult, Checks
+
+    effect = updating.Effect("added_mass", nodes=(int(where.split()[-1]),), values={"m": 0.4})
+    return CandidateResult(effect, 1, 0.97, log_z, 0.0, (0.1,), "add 0.4 kg (±0.05 kg) at grid 214", 0.0, None, None,
+                           chi2, 0.9, 0.21, 3, None, None, None, (), True, Checks(*[True] * 5), True)
+
+
+def _verdict(outcome, chi2_base, effects=(), ties=()):
+    from updating.diagnosis import Baseline
+    from updating.diagnosis._verdict import verdict
+
+    return verdict(outcome, tuple(effects), tuple(ties), Baseline((), 1.0, 0.9, 0.9, 0.9, chi2_base, 1.0, 1.0))
 
 
 def test_verdict_says_what_to_do_or_that_nothing_single_explains_the_data():
-    e = {"kind": "added_mass", "where": "node 214", "advice": "add 0.4 kg (±0.05 kg) at grid 214",
-         "heldout_rms_freq_dev_pct_before": 0.9, "heldout_rms_freq_dev_pct_after": 0.21, "posterior": 0.97,
-         "chi2_per_row": 1.1, "log_evidence": 250.0}
-    assert verdict(_report("effect", 30.0, [e])) == (
+    e = _result()
+    assert _verdict("effect", 30.0, [e]) == (
         "Add 0.4 kg (±0.05 kg) at grid 214: held-out frequency error 0.90 % → 0.21 % (posterior probability 0.97).")
-    tie = {"where": "node 215"}
-    assert "cannot tell it apart from node 215" in verdict(_report("effect", 30.0, [e], [tie]))
-    assert "more than this one effect" in verdict(_report("effect", 30.0, [{**e, "chi2_per_row": 9.0}]))
-    text = verdict(_report("unexplained", 417.0, [{**e, "chi2_per_row": 300.0}]))
+    tie = _result("node 215")
+    assert "cannot tell it apart from node 215" in _verdict("effect", 30.0, [e], [tie])
+    assert "more than this one effect" in _verdict("effect", 30.0, [_result(chi2=9.0)])
+    text = _verdict("unexplained", 417.0, [_result(chi2=300.0)])
     assert text.startswith("No single effect explains the data") and "417" in text and "model form" in text
     assert "added_mass at node 214" in text  # the best partial candidate
-    assert verdict(_report("none_needed", 0.9)).startswith("No extra effect is warranted")
+    assert _verdict("none_needed", 0.9).startswith("No extra effect is warranted")
 
 
 def test_scan_start_refines_the_first_factor_about_the_best_point(monkeypatch):
@@ -54,7 +64,7 @@ def test_scan_start_refines_the_first_factor_about_the_best_point(monkeypatch):
     θ ≈ 0.9 ± 0.2, between the grid's 0 and 1.5): the scan is refined about its best point
     and starts there; a scan of two factors is refined along the first (a 20 kg box's
     mass, its CG height held: the valley is e^±0.2 wide in the mass)."""
-    from updating import _evidence
+    from updating.diagnosis import _fit as _evidence
 
     calls = []
 
@@ -79,8 +89,8 @@ def test_a_fit_whose_model_fails_in_a_host_check_is_reported_not_ranked(monkeypa
     naming the callback: the candidate gets cost inf and the error; other errors propagate."""
     from types import SimpleNamespace
 
-    import updating._evidence as ev
-    from updating._evidence import fit
+    import updating.diagnosis._fit as ev
+    from updating.diagnosis._fit import fit
 
     monkeypatch.setattr(ev, "with_extension", lambda problem, *a: problem)
     problem = SimpleNamespace(lam_e=np.ones(3))
@@ -90,7 +100,7 @@ def test_a_fit_whose_model_fails_in_a_host_check_is_reported_not_ranked(monkeypa
             raise err
 
         res = fit(SimpleNamespace(solve=fail), problem, None, np.zeros(2))
-        assert res["cost"] == np.inf and np.isnan(res["freq_dev"]).all() and res["error"] == str(err)
+        assert res.cost == np.inf and np.isnan(res.freq_dev).all() and res.error == str(err)
     def other(*args):
         raise ValueError("shapes differ")
 

@@ -253,7 +253,7 @@ def test_enough_rows_no_warning(frame, measured):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         res = update(frame, measured, ParameterSet(SIX[:2], opts))
-    assert res.warnings == [] and res.to_json()["warnings"] == []
+    assert res.warnings == () and res.to_json()["warnings"] == []
 
 
 # --- property test of the schema -------------------------------------------------------
@@ -353,7 +353,7 @@ GOOD_STUDY = {"study": {"model": "tree", "sensors": "tree", "error_pids": [2, 4]
     ("[options]\nmax_iterations = 2.5", "options.max_iterations: expected an integer ≥ 1"),
 ])
 def test_a_monte_carlo_study_file_is_checked_naming_file_and_key(tmp_path, text, message):
-    from updating._study import Study
+    from updating.studies._study import Study
 
     path = tmp_path / "study.toml"
     path.write_text(text + "\n")
@@ -368,7 +368,7 @@ def test_a_monte_carlo_study_file_is_checked_naming_file_and_key(tmp_path, text,
 def test_study_schema_property_valid_or_value_error_naming_the_key(tmp_path_factory):
     """A random TOML value in any key of a valid Monte-Carlo study: a Study or a ValueError
     naming the file and the key; never another exception."""
-    from updating._study import Study
+    from updating.studies._study import Study
 
     folder = tmp_path_factory.mktemp("study")
     values = _values(["tree", "sparse", "relative"], ["relative", "samples"])

@@ -13,9 +13,9 @@ from benchmarks.frames import frame_bdf
 from identification import ModalData, Sensors, observation_matrix
 from jaxfem.io import read_bdf_text
 from updating import Options, Parameter, ParameterSet, build_problem, parameterise
-import updating._localisation as localisation
+import updating.diagnosis._localisation as localisation
 from benchmarks import cfrp_panel
-from updating._localisation import _element_dofs, group_scores, parameter_reduction, residual_forces
+from updating.diagnosis._localisation import _element_dofs, group_scores, parameter_reduction, residual_forces
 
 
 def test_both_indicators_find_the_erroneous_group():
@@ -173,8 +173,8 @@ def test_the_screen_leaves_out_the_shape_rows_of_modes_that_mix():
     large residual (modes mixed, beyond a linear step) that a decoy element would take.
     The element that explains every other row screens best (ρ 1 on those rows, the decoy
     keeps its ρ on all rows), and its step is 1."""
-    from updating._candidates import Screen, _row_modes
-    from updating._element_sensitivity import ElementJacobian
+    from updating.diagnosis._screen import Screen, _row_modes
+    from updating.diagnosis._element_sensitivity import ElementJacobian
 
     ne, ns = 3, 4
     row_mode = _row_modes(SimpleNamespace(phi_e=np.zeros((ns, ne))))  # eigenvalue rows, then shape rows

@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from updating._montecarlo import TABLE_4_6, Runner, Study, default_study, montecarlo
+from updating.studies._montecarlo import TABLE_4_6, Runner, Study, default_study, montecarlo
 
 EXACT = 1.0 / (1.0 + TABLE_4_6[1][1]) - 1.0  # the correction that undoes K̃_1 (−17 %)
 
@@ -33,7 +33,7 @@ def test_zero_measurement_error_recovers_the_modelling_error(zero_error, tmp_pat
     np.testing.assert_allclose(d["alpha"][:2, 1:], 0.0, atol=1e-6)  # untouched substructures
     assert np.abs(d["alpha"][2] - d["alpha"][0]).max() > 1e-4  # the 5 % relative error moves them
     np.testing.assert_allclose(result.reference[3]["alpha"][0], [EXACT, 0.0, 0.0], atol=1e-6)
-    assert [p["done"] for p in seen] == [1, 2, 3]
+    assert [p.done for p in seen] == [1, 2, 3] and [p.detail["done"] for p in seen] == [1, 2, 3]
     # Interrupted run: one finished chunk lost; the rerun computes only that one.
     (tmp_path / "chunks" / "n03_0000001.npz").unlink()
     seen.clear()
@@ -128,7 +128,7 @@ def test_subspace_samples_equal_full_solves():
     """Issue 6: warm-started subspace solves give every sample's factors of the update
     with full dense eigensolves (from the initial model) within 1e-8."""
     from updating import Options
-    from updating._montecarlo import tree_parameters
+    from updating.studies._montecarlo import tree_parameters
 
     study = default_study(1, n_modes=(3,), samples=2, chunk_size=2, errors=(("relative", (0.05,)),),
                           parameters=tree_parameters(Options(tolerance=1e-9, max_iterations=30,
@@ -137,7 +137,7 @@ def test_subspace_samples_equal_full_solves():
     full = Runner(study, devices=jax.devices()[:1])
     g = full.group(3)
     f, phi = g.data(study, 0, 2)
-    ref = g.update(f, phi, "full", g.origin)
+    ref = g.update(f, phi, "dense", g.origin)
     assert np.all(sub["status"] == 0) and np.all(np.asarray(ref.converged))
     assert np.all(sub["iterations"] < np.asarray(ref.iterations))  # started from the error-free update
     np.testing.assert_allclose(sub["alpha"], np.expm1(np.asarray(ref.theta)), rtol=0, atol=1e-8)
@@ -150,7 +150,7 @@ def test_sparse_samples_sharded_over_four_devices_equal_subspace_samples():
     λ_max/λ_1 ≈ 8e8, the sparse modes carry relative errors of ~1e-9, so the last steps
     jitter at that level.)"""
     from updating import Options
-    from updating._montecarlo import tree_parameters
+    from updating.studies._montecarlo import tree_parameters
 
     study = default_study(1, n_modes=(3,), samples=2, chunk_size=2, errors=(("relative", (0.05,)),),
                           parameters=tree_parameters(Options(tolerance=1e-7, max_iterations=30,

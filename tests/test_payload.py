@@ -13,11 +13,11 @@ import pytest
 import jaxfem
 from benchmarks.shell_models import plate
 from jaxfem import _edit as edit
-from jaxfem._assembly import _node_transform
+from jaxfem import node_transform
 from jaxfem.io import read_bdf_text
 from updating import Payload, parse_effect
-from updating._candidates import augment, region_shells
-from updating._topology import total_mass
+from updating.diagnosis._candidates import augment, region_shells
+from updating.diagnosis._topology import total_mass
 
 MAT = "MAT1,1,7.0e10,,0.33,2700.0\nPSHELL,1,1,0.002,1\n"
 
@@ -100,9 +100,9 @@ def test_the_rbe3_grid_widens_only_the_block_that_uses_it(model):
     transforms keep their 6 columns a grid (assembly cost unchanged), the mass's takes 12."""
     added = model.with_effect(Payload(nodes=tuple(_shell(model)), m=0.5))
     assert added.dofs.index.shape[1] == 12
-    t, idx = _node_transform(added, added.quads.nodes)
+    t, idx = node_transform(added, added.quads.nodes)
     assert t.shape[1:] == (24, 24) and idx.shape[1] == 24
-    t, idx = _node_transform(added, added.masses.nodes[:, None])
+    t, idx = node_transform(added, added.masses.nodes[:, None])
     assert t.shape[1:] == (6, 12)
 
 

@@ -1,5 +1,5 @@
 """A Monte-Carlo study's chunks and a diagnosis' candidate fits on a local Ray cluster
-(updating._ray)."""
+(updating.studies._ray, updating.diagnosis._ray_fits)."""
 
 import functools
 import os
@@ -12,9 +12,10 @@ import ray
 
 from test_reduced import case, joint  # noqa: F401 (fixtures)
 from updating._eigensolvers import Direct
-from updating._evidence import candidate_fit
-from updating._montecarlo import Runner, default_study, montecarlo
-from updating._ray import fit_candidates_ray, montecarlo_ray
+from updating.diagnosis._fit import candidate_fit
+from updating.studies._montecarlo import Runner, default_study, montecarlo
+from updating.diagnosis._ray_fits import fit_candidates_ray
+from updating.studies._ray import montecarlo_ray
 
 # Ray starts its processes with fork + exec (subprocess); JAX warns at every fork once its
 # backend runs (other tests of this xdist worker may have started it). Exec'd children
@@ -69,7 +70,7 @@ def test_chunks_on_ray_equal_one_process_and_survive_a_lost_worker(cores, tmp_pa
                             runner_factory=functools.partial(DiesOnce, marker=tmp_path / "marker"))
     single = montecarlo(study, runner=driver)
     assert not (tmp_path / "marker").exists()
-    assert [p["done"] for p in seen] == [1, 2] and seen[-1]["retries"] == 1
+    assert [p.done for p in seen] == [1, 2] and seen[-1].detail["retries"] == 1 and "1 retried" in seen[-1].message
     for key, value in single.samples[2].items():
         np.testing.assert_array_equal(result.samples[2][key], value, err_msg=key)
     # Resumed from the chunk files: nothing left to run, no worker started.

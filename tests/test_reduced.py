@@ -1,4 +1,4 @@
-"""The diagnosis' reduced fits (updating._reduced): on the frame, a joint released by two
+"""The diagnosis' reduced fits (updating.diagnosis._reduced): on the frame, a joint released by two
 orders of magnitude (and both factors by e⁻¹²) keeps its eigenvalues within 1e-4 of the full model's in the basis made
 at the stiff baseline; the reduced derivative equals finite differences; a fit on the
 reduced model lands where the full one does. The diagnosis through reduced fits:
@@ -6,6 +6,8 @@ tests/test_diagnose.py::test_joint."""
 
 import jax
 import jax.numpy as jnp
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 import scipy.sparse
@@ -16,15 +18,16 @@ from identification import Sensors
 from jaxfem.io import read_bdf_text
 from test_diagnose import measure
 from updating import Options, Parameter, ParameterSet
-from updating._candidates import augment, region_structures, structural_candidates
-from updating._diagnose import FULL_MODEL_TOL, DiagnoseOptions, _on_full_model
-from updating._effects import Effect, at_reference
-from updating._evidence import Fits, fit, with_extension
+from updating.diagnosis._candidates import augment, region_structures, structural_candidates
+from updating.diagnosis import DiagnoseOptions
+from updating.diagnosis._diagnose import FULL_MODEL_TOL, _on_full_model
+from updating.diagnosis._effects import Effect, at_reference
+from updating.diagnosis._fit import Fits, fit, with_extension
 from updating._extension import extension
-from updating._reduced import Bases
+from updating.diagnosis._reduced import Bases
 from updating._residuals import evaluate
 from updating._solve import build_problem
-from updating._topology import elements_at
+from updating.diagnosis._topology import elements_at
 
 NODE = 13
 
@@ -53,7 +56,7 @@ def joint(case):
     fits = Fits(DiagnoseOptions().settings)
     none = extension(aug)
     base = fit(fits, problem, none, np.zeros(1))
-    bases = Bases(with_extension(problem, none), base["theta"])
+    bases = Bases(with_extension(problem, none), base.theta)
     c = next(c for c in structural_candidates(aug, stiffened) if c.reference.nodes == (NODE,))
     springs = next(r.ids() for r in stiffened if r.effect.nodes == (NODE,))
     return problem, fits, c, bases.reduced(problem, c.ext, np.zeros(2), held=True), (bases, springs)
@@ -77,36 +80,40 @@ def test_reduced_fit_lands_where_the_full_one_does(joint):
     problem, fits, c, red, _ = joint
     full = fit(fits, problem, c.ext, np.array([0.0, -4.6]))
     reduced = fit(fits, problem, c.ext, np.array([0.0, -4.6]), red)
-    assert np.allclose(reduced["theta"], full["theta"], atol=1e-3)
-    assert abs(reduced["cost"] / full["cost"] - 1) < 1e-3
+    assert np.allclose(reduced.theta, full.theta, atol=1e-3)
+    assert abs(reduced.cost / full.cost - 1) < 1e-3
+
+
+def _run(fits, problem, sigma2, say):
+    return SimpleNamespace(fits=fits, problem=problem, sigma2=sigma2, say=say)
 
 
 def test_a_reduced_fit_is_checked_on_the_full_model(joint, monkeypatch):
     """The diagnosis reports the full model's values at a reduced fit's θ, and fits again
     on the full model only where its cost there differs by more than FULL_MODEL_TOL χ²
     and more than FULL_MODEL_REL of its χ²."""
-    import updating._diagnose as d
+    import updating.diagnosis._diagnose as d
 
     problem, fits, c, red, _ = joint
     monkeypatch.setattr(d, "FULL_MODEL_REL", 0.0)  # first the absolute tolerance alone
-    c.result = fit(fits, problem, c.ext, np.array([0.0, -4.6]), red)
-    full = fit(fits, problem, c.ext, c.result["theta"], skip=True)
+    c.fit = fit(fits, problem, c.ext, np.array([0.0, -4.6]), red)
+    full = fit(fits, problem, c.ext, c.fit.theta, skip=True)
     said = []
-    gap = abs(full["cost"] - c.result["cost"])
+    gap = abs(full.cost - c.fit.cost)
     assert gap > 0
-    kept = _on_full_model(fits, problem, c, 2 * gap / FULL_MODEL_TOL, said.append)  # the gap: half the tolerance
-    assert said == [] and np.array_equal(kept["theta"], c.result["theta"])
-    assert kept["cost"] == full["cost"] and np.array_equal(kept["jac"], full["jac"])
-    again = _on_full_model(fits, problem, c, gap / FULL_MODEL_TOL / 10, said.append)  # ten times the tolerance
+    kept = _on_full_model(_run(fits, problem, 2 * gap / FULL_MODEL_TOL, said.append), c)  # the gap: half the tolerance
+    assert said == [] and np.array_equal(kept.theta, c.fit.theta)
+    assert kept.cost == full.cost and np.array_equal(kept.jac, full.jac)
+    again = _on_full_model(_run(fits, problem, gap / FULL_MODEL_TOL / 10, said.append), c)  # ten times the tolerance
     assert len(said) == 1 and "fitted again" in said[0]
     direct = fit(fits, problem, c.ext, np.array([0.0, -4.6]))  # on the full model from the start
-    assert again["cost"] <= full["cost"] and abs(again["cost"] / direct["cost"] - 1) < 1e-4
-    share = gap / full["cost"]  # then a gap of this share of the cost, far above FULL_MODEL_TOL χ²
+    assert again.cost <= full.cost and abs(again.cost / direct.cost - 1) < 1e-4
+    share = gap / full.cost  # then a gap of this share of the cost, far above FULL_MODEL_TOL χ²
     monkeypatch.setattr(d, "FULL_MODEL_REL", 2 * share)
-    assert _on_full_model(fits, problem, c, gap / FULL_MODEL_TOL / 1e3, said.append)["cost"] == full["cost"]
+    assert _on_full_model(_run(fits, problem, gap / FULL_MODEL_TOL / 1e3, said.append), c).cost == full.cost
     assert len(said) == 1  # kept: the gap is half the relative tolerance
     monkeypatch.setattr(d, "FULL_MODEL_REL", share / 2)
-    _on_full_model(fits, problem, c, gap / FULL_MODEL_TOL / 1e3, said.append)
+    _on_full_model(_run(fits, problem, gap / FULL_MODEL_TOL / 1e3, said.append), c)
     assert len(said) == 2 and "fitted again" in said[1]
 
 
@@ -193,9 +200,9 @@ def test_a_groups_factor_is_projected_once(joint):
 def test_candidate_fits_on_two_threads_equal_one_thread(joint):
     """The diagnosis fits its candidates on a thread per CPU (one compiled fit shared): the
     same θ₀, θ and cost, in the same order, as one after another."""
-    from updating._diagnose import _threaded
+    from updating.diagnosis._refine import threaded as _threaded
     from updating._eigensolvers import Direct
-    from updating._evidence import candidate_fit
+    from updating.diagnosis._fit import candidate_fit
 
     problem, fits, c, red, _ = joint
     jobs = [(0, c.ext, np.zeros(0), None, np.array([0.0, -4.6]), Direct()),
@@ -206,14 +213,14 @@ def test_candidate_fits_on_two_threads_equal_one_thread(joint):
     assert [k for k, _ in two] == [0, 1, 2]
     for (_, (t0, a)), (_, (u0, b)) in zip(one, two):
         np.testing.assert_array_equal(t0, u0)
-        np.testing.assert_allclose(b["theta"], a["theta"], rtol=1e-9, atol=1e-12)
-        np.testing.assert_allclose(b["cost"], a["cost"], rtol=1e-9)
+        np.testing.assert_allclose(b.theta, a.theta, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(b.cost, a.cost, rtol=1e-9)
 
 
 def test_a_springs_change_loads_are_kept_once():
     """A spring's change load k (e_a − e_b) comes from either end: ``_distinct`` keeps one
     column per direction, whatever its sign and scale, and keeps different ones."""
-    from updating._reduced import _distinct
+    from updating.diagnosis._reduced import _distinct
 
     e = np.eye(6)
     a, b, c = 2.0 * (e[0] - e[3]), 5.0 * (e[1] - e[4]), e[2] + 0.5 * e[5]

@@ -12,8 +12,9 @@ pytest.importorskip("matplotlib")
 import jaxfem
 from benchmarks.frames import frame_bdf
 from identification._patches import shell_centres
-from updating._plots import effect_where, plot_effect_ranking, plot_structure, plot_surface
-from updating._report import write_report
+from updating.report._plots import effect_where, plot_effect_ranking
+from updating.report._structure_plots import plot_structure, plot_surface
+from updating.report._html import write_report
 
 
 @pytest.fixture(scope="module")
@@ -74,7 +75,7 @@ def test_plot_effect_ranking():
 
 
 def test_write_report(tmp_path, model):
-    from updating._plots import _figure
+    from updating.report._plots import _figure
 
     figures = {"mac": _figure(3, 3), "structure": plot_structure(model), "effects": plot_effect_ranking([])}
     figures["mac"].add_subplot().plot([0, 1])
@@ -82,7 +83,8 @@ def test_write_report(tmp_path, model):
         "model": "/a/b/model.bdf", "test": "test.unv", "verdict": "Mass <b>missing</b> at node 7 & more",
         "paired_modes": [{"test": 1, "model": 1, "f_test_hz": 10.0, "f_model_hz": 10.51234,
                           "freq_dev_pct": 5.1234, "mac": 0.98765}],
-        "unpaired_test": [3], "baseline": {"rms_freq_dev_pct": 5.1, "mean_mac": 0.9},
+        "unpaired_test": [3], "baseline": {"rms_freq_dev_pct": 5.1, "mean_mac": 0.9, "heldout_rms_freq_dev_pct": 4.2,
+                                           "chi2_per_row_shape": 3.3},
         "sensors": [{"label": f"{i}+X", "comac": 1.0 - 0.01 * i} for i in range(15)],
         "localisation": {"groups": [{"pid": 41, "score": 1.0}], "nodes": []},
         "effects": [{"rank": 1, "kind": "mass", "nodes": [7], "parameters": {"m": 0.5}, "score": 0.9,
@@ -98,6 +100,9 @@ def test_write_report(tmp_path, model):
     assert "http" not in text
     assert "model.bdf" in text and "/a/b" not in text
     assert "10.51" in text and "10.51234" not in text and "m=0.5" in text and "small; local" in text
+    # the baseline labelled for engineers, not by its JSON keys
+    assert "held-out RMS Δf [%]" in text and "χ² per row, shapes [–]" in text
+    assert "heldout rms" not in text and "chi2 per row" not in text
     tables = re.sub(r'<img src="[^"]*"', "", text)
     assert "14+X" in tables and "4+X" not in tables.replace("14+X", "")  # the 10 lowest COMAC only
     order = [text.index(s) for s in ("Comparison", "Where it fails", "Candidate effects", "More plots")]
@@ -176,7 +181,7 @@ def _rolled(panel):
 def test_plot_surface_curved(panel):
     from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
-    from updating._plots import _figure
+    from updating.report._plots import _figure
 
     tube = _rolled(panel)
     ids, centres, _ = shell_centres(tube)
@@ -237,7 +242,7 @@ def _png_widths(html_text: str) -> list[int]:
 
 
 def test_write_report_places_the_surface_map(tmp_path, panel):
-    from updating._plots import _figure
+    from updating.report._plots import _figure
 
     values, patch, _, _, _ = _panel_case(panel)
     groups = _figure(2, 2)  # small: told apart from the 8 x 6 in map by its width

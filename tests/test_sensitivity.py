@@ -98,7 +98,7 @@ def test_noise_widens_the_tolerance_to_what_it_warrants(frame, recovered, key):
     """Table 4.7 errors: α is off by about the linearised 3σ, which becomes the tolerance."""
     model, sensors = frame
     noisy = test_run(model, sensors, WELL_POSED, recovered.injected, n_modes=N_MODES, tol=1e-6,
-                     noise=Noise(relative=0.01, frequency=0.005), key=key)
+                     noise=Noise(frequency=0.0025, relative=0.01), key=key)
     assert noisy.converged and noisy.all_recovered
     assert np.all(noisy.tolerance > 1e-3) and np.all(noisy.tolerance < 0.1)
     assert np.any(noisy.error > 1e-4)  # the noise does move the factors
@@ -112,7 +112,7 @@ def test_bad_input_is_refused(frame):
     with pytest.raises(ValueError, match="> -1"):
         test_run(model, sensors, WELL_POSED, [0.1, -1.0, 0.1, 0.1])
     with pytest.raises(ValueError, match="key"):
-        test_run(model, sensors, WELL_POSED, [0.1, 0.1, 0.1, 0.1], noise=Noise(relative=0.01, frequency=0.01))
+        test_run(model, sensors, WELL_POSED, [0.1, 0.1, 0.1, 0.1], noise=Noise(frequency=0.005, relative=0.01))
     with pytest.raises(ValueError, match="n_modes"):
         sensitivities(model, GROUPS, sensors)
     with pytest.raises(ValueError, match="needs the test data"):

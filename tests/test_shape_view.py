@@ -1,4 +1,4 @@
-"""The interactive 3-D mode-shape view (updating._shape_view): UFF trace lines, the grid and
+"""The interactive 3-D mode-shape view (updating.report._shape_view): UFF trace lines, the grid and
 test-node translations, a self-contained HTML file, ``correlate --report``, and the page in a
 real headless browser (Chromium): no console error, the structure on screen."""
 
@@ -19,7 +19,7 @@ from benchmarks.frames import frame_bdf
 from identification import ModalData, Sensors, observation_matrix, read_trace_lines, read_uff, write_uff
 from jaxfem.io import read_bdf
 from updating import Effect
-from updating import _shape_view as sv
+from updating.report import _shape_view as sv
 from updating.cli import app
 
 SENSOR_GRIDS = list(range(5, 21))  # floors 1..4 of the 2 × 2 × 4 frame; grids 1..4 (base) unmeasured
@@ -115,7 +115,7 @@ def test_shape_view_is_one_self_contained_file(tmp_path, case):
     model, test = case.model, case.test
     lam, phi = jaxfem.modes(model, 12)
     at = observation_matrix(model, test.sensors)[0] @ np.asarray(phi)
-    from updating._correlation import pair_modes
+    from identification._correlation import pair_modes
 
     pairing = pair_modes(np.asarray(jaxfem.frequencies_hz(lam)), at, test.frequencies_hz, test.shapes)
     assert len(pairing.test) >= 6
@@ -228,8 +228,8 @@ def test_correlate_report_writes_the_view(case, correlated):
 def test_diagnosis_report_links_the_views(tmp_path, case):
     """``diagnose --report``: shapes.html (initial model) and shapes_after.html (with the
     effect) next to report.html, linked from it."""
-    from updating._diagnose import DiagnoseOptions
-    from updating._report import write_report
+    from updating.diagnosis import DiagnoseOptions
+    from updating.report._html import write_report
     from updating.cli._diagnose import _shape_views
 
     after = Effect("added_mass", nodes=(14,), values={"m": 25.0}).apply(case.model)

@@ -5,6 +5,8 @@ data relative to a reference state (updating.relative_to)."""
 import warnings
 
 import jax.numpy as jnp
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -13,9 +15,9 @@ from benchmarks.shell_models import plate
 from identification import ModalData, Sensors
 from jaxfem.io import read_bdf_text
 from updating import Delamination, DistributedMass, Effect, PatchStiffness, parse_effect, relative_to
-from updating._effects import RADII, BoundarySpring
+from updating.diagnosis._effects import RADII, BoundarySpring
 from updating._simulation import simulate_test
-from updating._topology import shell_area, shell_size, total_mass
+from updating.diagnosis._topology import shell_area, shell_size, total_mass
 
 LAMINATE = """MAT8,8,5.4e10,5.4e10,0.05,5.0e9,2.0e9,2.0e9,1460.0
 PCOMP,1,,,,,,,,
@@ -142,7 +144,7 @@ def test_seam_springs_per_unit_length_on_a_barrel():
     the end grids' outer half-spans), springs = value × share, and a released seam softens
     the barrel while the reference (slightly softer than rigid) hardly does."""
     from benchmarks import fuselage
-    from updating._effects import SEAM_GRIDS, Seam
+    from updating.diagnosis._effects import SEAM_GRIDS, Seam
 
     model = jaxfem.build_model(read_bdf_text(fuselage.barrel_bdf(3000)))
     seams = [s for s in Seam.candidates(model) if s.pids == (101, 201)]
@@ -173,9 +175,9 @@ def test_the_joints_and_seams_of_a_region_release_each_grid_once():
     Released twice, the second release cut the first's grid loose: a rotation of one grid
     mixed into the modes above 100 Hz and lowered them by up to 12 %."""
     from benchmarks import fuselage
-    from updating._candidates import _moved, augment, region_structures
-    from updating._effects import KINDS, Joint, Seam, _seam_lines
-    from updating._topology import masters
+    from updating.diagnosis._candidates import _moved, augment, region_structures
+    from updating.diagnosis._effects import KINDS, Joint, Seam, _seam_lines
+    from updating.diagnosis._topology import masters
 
     model = jaxfem.build_model(read_bdf_text(fuselage.barrel_bdf(2500)))
     joints, seams = {n for j in Joint.candidates(model) for n in j.nodes}, Seam.candidates(model)
@@ -197,8 +199,8 @@ def test_a_frames_and_a_stringers_seams_crossing_at_a_hot_grid_are_both_offered(
     (the best of each beam group first), each releasing its own beams there; a grid one
     element from a scored grid takes 0.9 of its score (_dilated)."""
     from benchmarks import fuselage
-    from updating._candidates import _dilated, neighbours, region_structures
-    from updating._effects import KINDS, Seam
+    from updating.diagnosis._candidates import _dilated, neighbours, region_structures
+    from updating.diagnosis._effects import KINDS, Seam
 
     model = jaxfem.build_model(read_bdf_text(fuselage.barrel_bdf(2500)))
     frame, stringer = fuselage.PID_FRAME, fuselage.PID_STRINGER
@@ -216,7 +218,7 @@ def test_a_frames_and_a_stringers_seams_crossing_at_a_hot_grid_are_both_offered(
 
 def test_a_seams_line_is_released_once_and_its_runs_are_masks_on_it():
     """A frame-to-skin seam is released along its whole line in the shared model
-    (:func:`updating._candidates.augment`), held stiff; a run of the line softened through its
+    (:func:`updating.diagnosis._candidates.augment`), held stiff; a run of the line softened through its
     own grids' springs (a mask) gives the frequencies of the nominal model with only that
     run released (Seam.apply), and the runs next to it are one grid along the line either
     way, each end out or in, and (coarse) half its length along, each end a quarter of it
@@ -226,8 +228,8 @@ def test_a_seams_line_is_released_once_and_its_runs_are_masks_on_it():
     import equinox as eqx
 
     from benchmarks import fuselage
-    from updating._candidates import STIFF, augment, seam_onward, structural_candidate, structural_candidates
-    from updating._effects import SEAM_GRIDS, SEAM_LENGTHS, SEAM_SCREEN, Seam
+    from updating.diagnosis._candidates import STIFF, augment, seam_onward, structural_candidate, structural_candidates
+    from updating.diagnosis._effects import SEAM_GRIDS, SEAM_LENGTHS, SEAM_SCREEN, Seam
 
     model = jaxfem.build_model(read_bdf_text(fuselage.barrel_bdf(2500)))
     seam = next(s for s in Seam.candidates(model) if s.pids[1] == 201 and len(s.nodes) == SEAM_GRIDS
@@ -269,7 +271,7 @@ def test_a_seams_line_is_released_once_and_its_runs_are_masks_on_it():
     assert c.scan is None and c.released.line == line and c.reference.nodes == line[start + 1:start + 9]
     a = structural_candidate(aug, released.seam(seam), theta0=soft)  # a fine move, an end out: made once more
     b = structural_candidate(aug, released.seam(released.effect.run(line, start - 1, SEAM_GRIDS + 1)), theta0=soft)
-    a.result, b.result = {"theta": soft}, {"theta": soft + 1}
+    a.fit, b.fit = SimpleNamespace(theta=soft), SimpleNamespace(theta=soft + 1)
     ahead = seam_onward(aug, a, b)
     assert ahead.reference.nodes == line[start - 2:start + SEAM_GRIDS] and np.allclose(ahead.theta0, soft + 1)
     assert seam_onward(aug, b, a) is not None and seam_onward(aug, a, replace(b, reference=released.effect.run(
@@ -291,9 +293,9 @@ def test_a_climb_makes_its_last_move_again_before_asking_every_neighbour():
     neighbours are asked at the start and at the bottom only."""
     from types import SimpleNamespace
 
-    from updating._diagnose import _climb
+    from updating.diagnosis._refine import _climb
 
-    at = {x: SimpleNamespace(x=x, result={"cost": float((x - 7) ** 2)}) for x in range(12)}
+    at = {x: SimpleNamespace(x=x, fit=SimpleNamespace(cost=float((x - 7) ** 2))) for x in range(12)}
     asked = []
 
     def near(c):
@@ -306,9 +308,9 @@ def test_a_climb_makes_its_last_move_again_before_asking_every_neighbour():
 
 
 def test_the_margin_about_a_region_goes_ring_by_ring_best_first_and_skips_clamped_grids(panel):
-    """The place walk's margin (updating._candidates.margin): the region's neighbours
+    """The place walk's margin (updating.diagnosis._candidates.margin): the region's neighbours
     first, then the next ring, each best scoring first, never a clamped grid."""
-    from updating._candidates import margin, neighbours
+    from updating.diagnosis._candidates import margin, neighbours
 
     edge = _grid_at(panel, 0.04, 0.15)  # one element from the clamped edge x = 0
     ring1 = set(neighbours(panel, edge))

@@ -19,7 +19,7 @@ import jaxfem
 from jaxfem.elements import laminates
 from jaxfem.io import read_bdf_text
 from updating._parameters import Parameter, ParameterSet, parameterise
-from updating._topology import total_mass
+from updating.diagnosis._topology import total_mass
 
 ALPHA = 0.3
 

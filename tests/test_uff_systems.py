@@ -157,7 +157,7 @@ def test_testlab_file_with_rotated_systems_correlates_through_the_cli(tmp_path):
     import jaxfem
     from benchmarks.shell_models import plate
     from jaxfem.io import read_bdf_text
-    from updating._shape_view import grid_translations
+    from updating.report._shape_view import grid_translations
     from updating.cli import app
 
     text = plate(1.0, 0.8, 8, 8, "PSHELL,1,1,0.01,1,,1\nMAT1,1,70.E9,,0.3,2700.", bc="free")

@@ -92,7 +92,7 @@ def test_noise_within_derived_tolerance(setup):
     Cov θ = J⁺ Σ J⁺ᵀ and σ_α = e^θ σ_θ; each factor must lie within 5σ of the truth.
     """
     model, params, truth, f, shapes, sensors = setup
-    noise = Noise(relative=0.01, frequency=0.004)  # σ 0.4 % on λ: 0.2 % on the frequencies
+    noise = Noise(frequency=0.002, relative=0.01)  # σ 0.2 % on the frequencies: 0.4 % on λ
     test = simulate_test(truth, sensors, 10, noise, jax.random.key(1))
     pset = ParameterSet(params, Options(tolerance=1e-8))
     res = update(model, test, pset)

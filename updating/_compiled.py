@@ -16,7 +16,7 @@ from collections.abc import Callable
 import equinox as eqx
 import jax
 
-from jaxfem._eager import jit_over
+from jaxfem import jit_over
 
 
 class Compiled:

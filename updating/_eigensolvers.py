@@ -7,8 +7,8 @@ pairing carries no derivative), the next warm start and two flags: the solve con
 and it needed a fresh preconditioner. Derivatives of the paired modes are exact
 (implicit differentiation, thesis eq. 3.23, eq. 3.28, eq. 3.29).
 
-- :class:`Direct`: the problem's own eigensolver (:func:`updating._residuals.evaluate`):
-  dense (``jaxfem.modes``: LAPACK ``eigh``, all modes; massless DoFs condensed;
+- :class:`Direct`: the problem's own eigensolver (:func:`updating.evaluate`), chosen once
+  when the problem is built (:func:`resolve_eigensolver`, ``Problem.sparse``): dense (``jaxfem.modes``: LAPACK ``eigh``, all modes; massless DoFs condensed;
   frequency-dependent stiffness) or sparse (``jaxfem.sparse_modes``, the lowest modes,
   derivatives of the paired ones by ``jaxfem.ritz_modes``). The default of ``update``
   and ``diagnose``.
@@ -19,7 +19,10 @@ and it needed a fresh preconditioner. Derivatives of the paired modes are exact
 - :class:`Reduced`: Rayleigh–Ritz on a fixed basis (:mod:`updating._reduced`): the
   diagnosis' candidate fits on a large model.
 
-A new solver subclasses :class:`AbstractEigensolver`.
+A new solver subclasses :class:`AbstractEigensolver`. One vocabulary names the choice
+everywhere (``--solver``, ``Options.eigensolver``, ``DiagnoseOptions.eigensolver``,
+``simulate_test``): :data:`EIGENSOLVERS`; a Monte-Carlo study's samples add ``subspace``
+(:data:`STUDY_EIGENSOLVERS`, its ``dense`` being :class:`Refined`).
 """
 
 from __future__ import annotations
@@ -34,9 +37,35 @@ from jaxtyping import Array, Bool, Float
 import jaxfem
 
 from ._extension import THETA_MAX
-from ._residuals import Evaluation, Problem, evaluate, pair, paired_evaluation, paired_subspace
+from ._residuals import (
+    Evaluation,
+    Problem,
+    evaluate,
+    pair,
+    paired_evaluation,
+    paired_subspace,
+)
 
 LOCKSTEP = "lockstep"  # vmap axis name of samples updated together (Monte-Carlo)
+EIGENSOLVERS = jaxfem.EIGENSOLVERS  # auto: sparse above jaxfem.SPARSE_ABOVE DoFs, unless frequency-dependent
+STUDY_EIGENSOLVERS = ("subspace", "dense", "sparse")  # a Monte-Carlo study's samples
+
+
+def eigensolver_name(requested: str | None, parameters=None) -> str:
+    """The eigensolver asked for: ``requested`` (``--solver``, ``DiagnoseOptions.eigensolver``)
+    unless it is None or ``auto``, then the parameter set's own; checked against :data:`EIGENSOLVERS`."""
+    name = "auto" if requested is None else requested
+    if name not in EIGENSOLVERS:
+        raise ValueError(f"eigensolver must be one of {', '.join(EIGENSOLVERS)}, got {name!r}")
+    if name == "auto" and parameters is not None:
+        name = parameters.options.eigensolver
+    return name
+
+
+def resolve_eigensolver(name: str, model) -> bool:
+    """The one resolver: whether ``name`` (:data:`EIGENSOLVERS`) means the sparse path for
+    ``model`` (:func:`jaxfem.use_sparse`); a problem stores the answer (``Problem.sparse``)."""
+    return jaxfem.use_sparse(model, eigensolver_name(name))
 
 
 class AbstractEigensolver(eqx.Module):
@@ -49,7 +78,7 @@ class AbstractEigensolver(eqx.Module):
 
 
 class Direct(AbstractEigensolver):
-    """The problem's own eigensolver (dense or sparse, ``problem.solver``); no warm start."""
+    """The problem's own eigensolver (dense or sparse: ``problem.sparse``); no warm start."""
 
     def __call__(self, theta, problem, warm):
         return evaluate(theta, problem), warm, jnp.asarray(True), jnp.asarray(False)

@@ -33,7 +33,7 @@ import jaxfem
 from ._eigensolvers import AbstractEigensolver
 from ._parameters import Options
 from ._qr import HouseholderQR
-from ._residuals import Evaluation, Problem, rows
+from ._residuals import Evaluation, Problem, paired_freq_dev, rows
 
 SOLVER_TOL = 1e-12  # Optimistix' Cauchy test (rtol = atol), the solver's own stopping rule
 
@@ -145,8 +145,7 @@ def _solver(settings: Settings):
 
 
 def _row(theta, cost, ev: Evaluation, problem: Problem):
-    ratio = jnp.maximum(ev.lam_a / problem.lam_e, 0.0)  # unpaired rows hold mode 0
-    dev = jnp.where(ev.paired, jnp.sqrt(ratio) - 1, jnp.nan)
+    dev = paired_freq_dev(ev.lam_a, ev.paired, problem.lam_e)
     return jnp.expm1(theta), cost, dev, jnp.where(ev.paired, ev.mac, jnp.nan)
 
 

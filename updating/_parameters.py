@@ -5,46 +5,38 @@ Every parameter is a relative factor α on its target (``value = value₀ (1 + �
 on ``θ = log(1 + α)``, so ``α = e^θ − 1 > −1`` holds by construction: stiffness and mass
 can never vanish or turn negative, with no clipping (thesis §3.2.1). Two kinds add α
 instead: ``a`` and the ply angle ``theta`` (radians, so bounded below by −1 rad).
+What each kind scales, and the checks of its targets against a model: :mod:`updating._targets`.
 """
 
 from __future__ import annotations
 
-import tomllib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
+import tomllib
 from jaxtyping import Array, Float
 
 import jaxfem
-from jaxfem import Model
-from jaxfem._model import MAT1, MAT2, MAT8
+from identification import MAX_FREQ_DEV, MIN_MAC
+from jaxfem import EIGENSOLVERS, Model
 
-from . import _schema as schema
-from ._schema import FieldError as FieldError
-
-KINDS = ("stiffness", "mass", "E", "G", "rho", "A", "I1", "I2", "J", "k", "m", "a",
-         "membrane", "bending", "transverse_shear", "E1", "E2", "G12", "G1Z", "G2Z", "NU12", "t", "nsm", "theta")
-# Material kinds: the Materials column scaled and the material types (MAT1/2/8) it acts on.
-_MATERIAL = {
-    "E": ("E", (MAT1,)), "G": ("G", (MAT1,)), "rho": ("rho", (MAT1, MAT2, MAT8)),
-    "E1": ("E", (MAT8,)), "E2": ("E2", (MAT8,)), "G12": ("G", (MAT8,)),
-    "G1Z": ("G1z", (MAT8,)), "G2Z": ("G2z", (MAT8,)), "NU12": ("nu", (MAT8,)),
-}
-_SECTION = {"A", "I1", "I2", "J"}
-# Shell section kinds: the ShellSections factor each scales (A, D, S of the laminate).
-_SHELL_FACTOR = {"membrane": "membrane", "bending": "bending", "transverse_shear": "shear"}
-_SHELL = set(_SHELL_FACTOR) | {"t", "theta"}
-_PIDS_ONLY = set(_MATERIAL) | _SECTION | _SHELL | {"nsm", "a"}
-# Kinds that also take shell element ids: the element's own factor (Shells.parts) or NSM (Shells.nsm).
-_SHELL_ELEMENT = {"membrane": 0, "bending": 1, "transverse_shear": 2, "nsm": None}
-# Where sections name their material rows: (section table, column).
-_MATERIAL_COLUMNS = (("beam_sections", "material"), ("rod_sections", "material"),
-                     ("shell_sections", "materials"), ("shell_sections", "ply_material"))
+from . import schema
+from ._targets import (
+    _MATERIAL,
+    _PIDS_ONLY,
+    _SHELL_ELEMENT,
+    _column,
+    _element_group,
+    _private_materials,
+    _scale_physical,
+    _target_problem,
+)
+from ._targets import KINDS as KINDS
+from .schema import FieldError as FieldError
 
 
 def _weight(v):
@@ -141,7 +133,7 @@ _OPTIONS_SCHEMA = {
     "min_mac": schema.number(0.0, strict=False, high=1.0),
     "max_freq_dev": schema.number(0.0, strict=True),
     "n_model_modes": schema.integer(1),
-    "eigensolver": schema.choice("auto", "dense", "sparse"),
+    "eigensolver": schema.choice(*EIGENSOLVERS),
 }
 _OPTIONAL = {"active_modes", "n_model_modes"}  # None: the default rule
 
@@ -170,8 +162,8 @@ class Options:
     solver: str = "levenberg-marquardt"
     max_iterations: int = 50
     tolerance: float = 1e-3
-    min_mac: float = 0.65
-    max_freq_dev: float = 0.30
+    min_mac: float = MIN_MAC
+    max_freq_dev: float = MAX_FREQ_DEV
     n_model_modes: int | None = None
     eigensolver: str = "auto"
 
@@ -301,291 +293,6 @@ class Parameterisation(eqx.Module):
         return model
 
 
-def _rows(ids: np.ndarray, wanted: Sequence[int]) -> np.ndarray:
-    return np.flatnonzero(np.isin(ids, np.asarray(wanted, dtype=np.int64)))
-
-
-def _scale_rows(values: Array, rows: np.ndarray, factor) -> Array:
-    mask = np.zeros(values.shape[0])
-    mask[rows] = 1.0
-    shape = (-1,) + (1,) * (values.ndim - 1)
-    return values * (1.0 + (factor - 1.0) * jnp.asarray(mask).reshape(shape))
-
-
-def _scale_physical(model: Model, p: Parameter, factor) -> Model:
-    if p.kind in _SHELL_ELEMENT and p.eids:
-        for name in ("quads", "trias"):
-            sh, rows = getattr(model, name), _rows(getattr(model, name).ids, p.eids)
-            col = _SHELL_ELEMENT[p.kind]
-            if col is None:
-                model = eqx.tree_at(lambda m: getattr(m, name).nsm, model, _scale_rows(sh.nsm, rows, factor))
-            else:
-                parts = sh.parts.at[:, col].set(_scale_rows(sh.parts[:, col], rows, factor))
-                model = eqx.tree_at(lambda m: getattr(m, name).parts, model, parts)
-        return model
-    if p.kind in _MATERIAL:
-        field_name, types = _MATERIAL[p.kind]
-        rows = _material_rows(model, p.pids, types)
-        values = getattr(model.materials, field_name)
-        return eqx.tree_at(lambda m: getattr(m.materials, field_name), model,
-                           _scale_rows(values, rows, factor))
-    if p.kind in _SECTION:
-        rows = _rows(model.beam_sections.ids, p.pids)
-        model = eqx.tree_at(lambda m: getattr(m.beam_sections, p.kind), model,
-                            _scale_rows(getattr(model.beam_sections, p.kind), rows, factor))
-        if p.kind in ("A", "J"):
-            rows = _rows(model.rod_sections.ids, p.pids)
-            model = eqx.tree_at(lambda m: getattr(m.rod_sections, p.kind), model,
-                                _scale_rows(getattr(model.rod_sections, p.kind), rows, factor))
-        return model
-    if p.kind in _SHELL:
-        sec = model.shell_sections
-        rows = _rows(sec.ids, p.pids)
-        if p.kind in _SHELL_FACTOR:
-            name = _SHELL_FACTOR[p.kind]
-            return eqx.tree_at(lambda m: getattr(m.shell_sections, name), model,
-                               _scale_rows(getattr(sec, name), rows, factor))
-        if p.kind == "t":  # PSHELL T; PCOMP plies and Z0 together (same centre); t = Σ plies
-            return eqx.tree_at(lambda m: (m.shell_sections.t, m.shell_sections.z0, m.shell_sections.ply_t), model,
-                               tuple(_scale_rows(v, rows, factor) for v in (sec.t, sec.z0, sec.ply_t)))
-        plies = np.zeros(sec.ply_theta.shape)  # kind theta: every ply of the target PCOMPs
-        plies[rows] = np.asarray(sec.ply_material)[rows] >= 0
-        return eqx.tree_at(lambda m: m.shell_sections.ply_theta, model,
-                           sec.ply_theta + (factor - 1.0) * jnp.asarray(plies))
-    if p.kind == "nsm":
-        for name in ("beam_sections", "rod_sections", "shell_sections"):
-            sec = getattr(model, name)
-            model = eqx.tree_at(lambda m: getattr(m, name).nsm, model,
-                                _scale_rows(sec.nsm, _rows(sec.ids, p.pids), factor))
-        return model
-    if p.kind == "a":
-        if model.viscoelastic is None:
-            raise ValueError(f"parameter {p.name!r}: kind a needs a model with a frequency law")
-        return eqx.tree_at(lambda m: m.viscoelastic.a, model, model.viscoelastic.a + (factor - 1.0))
-    if p.kind == "k":
-        s, b = model.springs, model.bushes
-        srows = _target_rows(model, s, p)
-        brows = _target_rows(model, b, p)
-        model = eqx.tree_at(lambda m: m.springs.k, model, _scale_rows(s.k, srows, factor))
-        return eqx.tree_at(lambda m: m.bushes.k, model, _scale_rows(b.k, brows, factor))
-    c = model.masses  # kind "m"
-    rows = np.union1d(_rows(c.ids, p.eids), np.flatnonzero(np.isin(model.node_ids[c.nodes], p.nodes)))
-    return eqx.tree_at(lambda m: m.masses.m, model, _scale_rows(c.m, rows, factor))
-
-
-def _section_materials(model: Model, pids: Sequence[int]) -> dict[int, np.ndarray]:
-    """pid → the material rows its section names (beam, rod, PSHELL roles, PCOMP plies)."""
-    out: dict[int, list] = {}
-    for name, column in _MATERIAL_COLUMNS:
-        sec = getattr(model, name)
-        rows = np.asarray(getattr(sec, column))
-        for r in _rows(sec.ids, pids):
-            out.setdefault(int(sec.ids[r]), []).extend(int(m) for m in np.ravel(rows[r]) if m >= 0)
-    return {pid: np.unique(np.asarray(rows, np.int64)) for pid, rows in out.items()}
-
-
-def _material_rows(model: Model, pids: Sequence[int], types=(MAT1, MAT2, MAT8)) -> np.ndarray:
-    """Material rows of the types ``types`` (MAT1, MAT2, MAT8) named by the sections of ``pids``."""
-    rows = np.concatenate([np.zeros(0, np.int64), *_section_materials(model, pids).values()])
-    rows = np.unique(rows)
-    return rows[np.isin(model.materials.kind[rows], types)]
-
-
-_TYPE_NAMES = {MAT1: "MAT1", MAT2: "MAT2", MAT8: "MAT8"}
-
-
-class _Ids(list):
-    """Ids in a message: the first ten, then how many in all."""
-
-    def __repr__(self) -> str:
-        return list.__repr__(self) if len(self) <= 10 else list.__repr__(self[:10])[:-1] + f", … {len(self)} in all]"
-
-
-def _missing(wanted: Sequence[int], present) -> _Ids:
-    present = set(np.asarray(present).tolist())
-    return _Ids(int(i) for i in wanted if i not in present)
-
-
-def _block_problem(model: Model, p: Parameter) -> str | None:
-    """Why targets of the element kinds (``stiffness``, ``mass``, ``k``, ``m``) or the beam
-    section kinds have nothing ``p`` scales: each named id must hold it (None: fine). A
-    target without it would leave its column zero: α stays 0 and the update "converges"."""
-    blocks = lambda names: [getattr(model, n) for n in names]  # noqa: E731
-    cat = lambda arrays: np.concatenate([np.zeros(0, np.int64)] + [np.asarray(a) for a in arrays])  # noqa: E731
-    if p.kind in ("stiffness", "mass"):
-        names = jaxfem.STIFFNESS_BLOCKS if p.kind == "stiffness" else jaxfem.MASS_BLOCKS
-        eids = _missing(p.eids, cat(b.ids for b in blocks(names)))
-        if eids:
-            what = "CONM2 masses (no stiffness)" if p.kind == "stiffness" else "springs or bushes (no mass)"
-            return f"eids {eids} are {what}: nothing for kind {p.kind} to scale"
-        pids = _missing(p.pids, cat(b.pids for b in blocks(n for n in names if n != "masses")))
-        if pids:
-            other = "" if p.kind == "stiffness" else " (PELAS and PBUSH elements have no mass)"
-            return (f"pids {pids} are used by no element with a {p.kind} matrix{other}: "
-                    f"nothing for kind {p.kind} to scale")
-        return None
-    if p.kind == "k":
-        sb = blocks(("springs", "bushes"))
-        eids = _missing(p.eids, cat(b.ids for b in sb))
-        pids = _missing(p.pids, cat(b.pids for b in sb))
-        attached = cat(model.node_ids[b.nodes[b.nodes >= 0]] for b in sb)
-        nodes = _missing(p.nodes, attached)
-        for key, bad, what in (("eids", eids, "are not springs or bushes (CELAS, CBUSH)"),
-                               ("pids", pids, "are not PELAS or PBUSH properties"),
-                               ("nodes", nodes, "have no spring or bush attached")):
-            if bad:
-                return f"{key} {bad} {what}: nothing for kind k (spring and bush stiffness) to scale"
-        return None
-    if p.kind == "m":
-        c = model.masses
-        for key, bad, what in (("eids", _missing(p.eids, c.ids), "are not CONM2 masses"),
-                               ("nodes", _missing(p.nodes, model.node_ids[c.nodes]), "carry no CONM2 mass")):
-            if bad:
-                return f"{key} {bad} {what}: nothing for kind m (CONM2 mass) to scale"
-        return None
-    if p.kind in _SECTION:
-        rods = p.kind in ("A", "J")
-        pids = _missing(p.pids, cat([model.beam_sections.ids] + ([model.rod_sections.ids] if rods else [])))
-        if pids:
-            held = "PBAR/PBARL/PBEAM" + ("/PROD" if rods else "")
-            return f"pids {pids} are not {held} properties: nothing for kind {p.kind} to scale" \
-                + ("" if rods else " (a PROD has A and J only)")
-    return None
-
-
-def _target_problem(model: Model, p: Parameter) -> str | None:
-    """Why the targets of ``p`` have nothing that it scales (None: fine)."""
-    problem = _block_problem(model, p)
-    if problem or p.kind in ("stiffness", "mass", "k", "m") or p.kind in _SECTION:
-        return problem
-    if p.kind in _SHELL_ELEMENT and p.eids:
-        shells = np.concatenate([model.quads.ids, model.trias.ids])
-        other = sorted(set(p.eids) - set(shells.tolist()))
-        if other:
-            return f"eids {other[:10]} are not shells (kind {p.kind} on eids acts on CQUAD4/CTRIA3 elements)"
-        if p.kind == "nsm" and not any(np.any(np.asarray(getattr(model, n).nsm)[_rows(getattr(model, n).ids, p.eids)])
-                                       for n in ("quads", "trias")):
-            return "the elements' own NSM is 0: a relative factor cannot change it (an effect sets it first)"
-        return None
-    if p.kind in _MATERIAL:
-        _, types = _MATERIAL[p.kind]
-        used = _section_materials(model, p.pids)
-        kinds = model.materials.kind
-        none = [pid for pid in p.pids if not np.isin(kinds[used.get(pid, np.zeros(0, np.int64))], types).any()]
-        if none:
-            wanted = "/".join(_TYPE_NAMES[t] for t in types)
-            return f"pids {none} use no {wanted} material (kind {p.kind} scales {wanted} materials)"
-        if p.kind in ("G1Z", "G2Z"):
-            sec = model.shell_sections
-            rows = _rows(sec.ids, p.pids)
-            shear = [np.asarray(sec.ply_material)[r] if sec.composite[r] else np.asarray(sec.materials)[r, 2:3]
-                     for r in rows]
-            values = np.asarray(getattr(model.materials, _MATERIAL[p.kind][0]))
-            bad = [int(sec.ids[r]) for r, m in zip(rows, shear)
-                   if sec.shear_rigid[r] or not ((kinds[m[m >= 0]] == MAT8) & (values[m[m >= 0]] > 0)).any()]
-            if bad:
-                return (f"pids {sorted(bad)} have no MAT8 transverse-shear material with {p.kind} > 0 "
-                        "(MID3 of a PSHELL, or the plies of a PCOMP not shear rigid)")
-        return None
-    if p.kind in _SHELL:
-        sec = model.shell_sections
-        shells = set(sec.ids.tolist())
-        other = [pid for pid in p.pids if pid not in shells]
-        if other:
-            return f"pids {other} are not PSHELL or PCOMP properties (kind {p.kind} acts on shell sections)"
-        rows = _rows(sec.ids, p.pids)
-        if p.kind == "theta":
-            pshell = [int(sec.ids[r]) for r in rows if not sec.composite[r]]
-            if pshell:
-                return f"pids {pshell} are PSHELL; kind theta rotates the plies of PCOMP properties"
-        if p.kind == "transverse_shear":
-            rigid = [int(sec.ids[r]) for r in rows if sec.shear_rigid[r]]
-            if rigid:
-                return f"pids {rigid} are shear rigid (blank MID3, or MAT8 plies without G1Z/G2Z): no S to scale"
-        return None
-    if p.kind == "nsm":
-        values, known = [], set()
-        for name in ("beam_sections", "rod_sections", "shell_sections"):
-            sec = getattr(model, name)
-            rows = _rows(sec.ids, p.pids)
-            values.append(np.asarray(sec.nsm)[rows])
-            known |= set(sec.ids[rows].tolist())
-        other = [pid for pid in p.pids if pid not in known]
-        if other:
-            return f"pids {other} are not beam, rod or shell properties (kind nsm)"
-        if not np.any(np.concatenate(values)):
-            return "NSM is 0 on every target property: a relative factor cannot change it"
-    return None
-
-
-def _target_rows(model: Model, block, p: Parameter) -> np.ndarray:
-    """Springs or bushes named by eid or pid, or attached to one of ``p.nodes``."""
-    at_node = np.isin(model.node_ids[np.maximum(block.nodes, 0)], p.nodes) & (block.nodes >= 0)
-    rows = np.union1d(_rows(block.ids, p.eids), _rows(block.pids, p.pids))
-    return np.union1d(rows, np.flatnonzero(at_node.any(axis=1)))
-
-
-def _element_group(model: Model, p: Parameter) -> np.ndarray:
-    return np.union1d(model.element_ids(pids=p.pids) if p.pids else np.zeros(0, np.int64),
-                      np.asarray(p.eids, dtype=np.int64))
-
-
-def _copy_material(mats, row: int):
-    """The material table with row ``row`` appended again, under the id −(its id)."""
-    copy = jax.tree.map(lambda a: a[row : row + 1], mats)
-    copy = eqx.tree_at(lambda m: m.ids, copy, -copy.ids)
-    return jax.tree.map(lambda a, b: (np if isinstance(a, np.ndarray) else jnp).concatenate([a, b]), mats, copy)
-
-
-def _private_materials(model: Model, pids: Sequence[int], types=(MAT1, MAT2, MAT8)) -> Model:
-    """Give the sections of ``pids`` their own material rows (copies) where they share one
-    (of the types ``types``) with a property outside ``pids``.
-
-    Every reference is redirected: beam and rod ``material``, the PSHELL roles (MID1..MID4)
-    and PCOMP plies of shell sections. One copy per shared material, used by all the
-    targets' references to it (a PSHELL with MID1 = MID2 keeps one material).
-    """
-    tables = {}
-    for name, column in _MATERIAL_COLUMNS:
-        sec = getattr(model, name)
-        rows = np.array(getattr(sec, column), dtype=np.int64, copy=True)
-        target = np.isin(sec.ids, np.asarray(pids, np.int64)).reshape((-1,) + (1,) * (rows.ndim - 1))
-        tables[name, column] = (rows, np.broadcast_to(target, rows.shape) & (rows >= 0))
-    by_target = set().union(*(rows[t].tolist() for rows, t in tables.values()))
-    by_others = set().union(*(rows[~t & (rows >= 0)].tolist() for rows, t in tables.values()))
-    kinds = model.materials.kind
-    shared = sorted(m for m in by_target & by_others if kinds[m] in types)
-    if not shared:
-        return model
-    mats = model.materials
-    for m in shared:
-        new = len(mats.ids)
-        mats = _copy_material(mats, m)
-        for rows, target in tables.values():
-            rows[target & (rows == m)] = new
-    model = eqx.tree_at(lambda md: md.materials, model, mats)
-    for (name, column), (rows, _) in tables.items():
-        model = eqx.tree_at(lambda md: getattr(getattr(md, name), column), model, rows)
-    return model
-
-
-def _column(model: Model, p: Parameter) -> tuple:
-    """What ``p`` scales, resolved (an element group, spring rows, ...): two parameters with
-    the same key have identical Jacobian columns."""
-    if p.kind in ("stiffness", "mass"):
-        return p.kind, frozenset(_element_group(model, p).tolist())
-    if p.kind == "k":
-        return p.kind, frozenset(_target_rows(model, model.springs, p).tolist()), \
-            frozenset(_target_rows(model, model.bushes, p).tolist())
-    if p.kind == "m":
-        c = model.masses
-        return p.kind, frozenset(np.union1d(_rows(c.ids, p.eids),
-                                            np.flatnonzero(np.isin(model.node_ids[c.nodes], p.nodes))).tolist())
-    if p.kind == "a":  # one coefficient of the frequency law, whatever the pids
-        return (p.kind,)
-    return p.kind, frozenset(p.pids), frozenset(p.eids)
-
-
 def identical_columns(model: Model, parameters: ParameterSet | Sequence[Parameter]) -> str | None:
     """Parameters of the same kind on the same targets (however named: pids or their
     eids), whose Jacobian columns are therefore identical, named pair by pair; None if
@@ -638,3 +345,4 @@ def parameterise(model: Model, parameters: ParameterSet | Sequence[Parameter]) -
         if problem:
             raise ValueError(f"parameter {p.name!r}: {problem}")
     return model, Parameterisation(params, tuple(k_groups), tuple(m_groups), tuple(k_index), tuple(m_index))
+

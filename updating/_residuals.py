@@ -19,11 +19,10 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
 import jaxfem
-from jaxfem import Model
-from jaxfem._model import Opaque
+from identification import mac, pair_modes_masked
+from jaxfem import Model, Opaque
 
 from ._compiled import Compiled
-from ._correlation import mac, pair_modes_masked
 from ._parameters import Parameterisation
 
 
@@ -34,7 +33,7 @@ class Problem(eqx.Module):
       real measured shapes at the sensors; ``C`` (n_s, n_dof): observation matrix;
     - ``active`` (n_e,) bool: modes in the fit; ``lam_weight`` (n_e,): eigenvalue-row
       weights; ``mu``: regularisation; ``use_lam``/``use_phi``: residual kinds;
-      ``solver``: the eigensolver of :func:`jaxfem.modes`.
+      ``sparse``: the problem's eigensolver, resolved once (:func:`updating.resolve_eigensolver`).
     """
 
     values: Model
@@ -51,7 +50,7 @@ class Problem(eqx.Module):
     use_phi: bool = eqx.field(static=True)
     min_mac: float = eqx.field(static=True)
     max_freq_dev: float = eqx.field(static=True)
-    solver: str = eqx.field(static=True, default="auto")  # eigensolver of jaxfem.modes
+    sparse: bool = eqx.field(static=True, default=False)  # the sparse eigensolver, else the dense
     extension: eqx.Module | None = None  # a candidate effect's parameters (updating._effects.Extension)
 
     def model(self, theta: Float[Array, " p"]) -> Model:
@@ -75,17 +74,17 @@ class Evaluation(eqx.Module):
 
 def model_modes(theta: Float[Array, " p"], problem: Problem):
     """Eigenvalues of the model at θ and its shapes at the sensors, ``(λ, C φ)``."""
-    lam, phi = jaxfem.modes(problem.model(theta), problem.n_model, solver=problem.solver)
+    lam, phi = jaxfem.modes(problem.model(theta), problem.n_model, solver="sparse" if problem.sparse else "dense")
     return lam, problem.C @ phi
 
 
 def evaluate(theta: Float[Array, " p"], problem: Problem) -> Evaluation:
     """Solve the model at θ and pair its modes with the test modes: all modes by
-    :func:`jaxfem.modes`, or, where ``problem.solver`` means the sparse path
-    (:func:`jaxfem.use_sparse`), the lowest by :func:`jaxfem.sparse_modes`, of which only
+    :func:`jaxfem.modes`, or, on the sparse path (``problem.sparse``), the lowest by
+    :func:`jaxfem.sparse_modes`, of which only
     the paired ones are differentiated."""
     model = problem.model(theta)
-    if jaxfem.use_sparse(model, problem.solver):
+    if problem.sparse:
         K, M = jaxfem.assemble(model)
         return paired_subspace(K, M, jaxfem.sparse_modes(K, M, problem.n_model), problem)
     lam, phi_s = model_modes(theta, problem)
@@ -153,3 +152,9 @@ def auto_eigenvalue_weights(theta: Float[Array, " p"], problem: Problem) -> Floa
     g_lam = jnp.linalg.norm(jac["eigenvalue"], axis=-1)
     g_phi = jnp.linalg.norm(jac["eigenvector"], axis=(0, 2))
     return jnp.maximum(1.0, jnp.where(g_lam > 0, g_phi / jnp.where(g_lam > 0, g_lam, 1.0), 1.0))
+
+
+def paired_freq_dev(lam_a, paired, lam_e):
+    """Δf = f_a/f_e − 1 of each test mode (eq. 4.1, with f ∝ √λ) from the paired model
+    eigenvalues; NaN where unpaired (an unpaired row holds mode 0)."""
+    return jnp.where(paired, jnp.sqrt(jnp.maximum(lam_a / lam_e, 0.0)) - 1, jnp.nan)

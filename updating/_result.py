@@ -6,13 +6,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from identification import rms_pct
 from jaxfem import Model
 
+from ._json import json_number
 from ._parameters import Parameterisation
-from ._report import json_number, rms_pct
 
 
-@dataclass
+@dataclass(frozen=True)
 class Iteration:
     """One accepted iterate: parameters, per-test-mode Δf and MAC (NaN if unpaired), cost."""
 
@@ -40,7 +41,7 @@ class Iteration:
         }
 
 
-@dataclass
+@dataclass(frozen=True)
 class UpdateResult:
     """Outcome of :func:`update`: updated model, factors, history, before/after pairings."""
 
@@ -57,7 +58,7 @@ class UpdateResult:
     seconds: float
     sensor_modes: dict  # "before"/"after": (model frequencies in Hz, shapes at the sensors)
     parameterisation: Parameterisation = field(repr=False)
-    warnings: list[str] = field(default_factory=list)  # e.g. an under-determined fit (updating._solve)
+    warnings: tuple[str, ...] = ()  # e.g. an under-determined fit (updating._solve)
 
     def table(self) -> list[dict]:
         """Parameters with their factors α (value = value₀·(1 + α))."""

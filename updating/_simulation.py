@@ -8,8 +8,9 @@ mode n and sensor component i:
     absolute   φ̃_n = φ_n + δ_abs,          δ_abs,i ~ U(−a, a) × max_i |φ_n,i|
     frequency  λ̃_n = λ_n (1 + δ_freq,n),   δ_freq,n ~ N(0, σ_freq²)
 
-The frequency error multiplies the eigenvalue λ = ω², as the thesis writes it (§4.3.3.2):
-for small δ the frequency changes by about δ/2, so σ_freq = 2 % means about 1 % in f.
+Noise is stated as an engineer states it, σ on the frequencies f (:class:`Noise`); the
+error multiplies the eigenvalue λ = ω² with twice that σ (for small δ, f changes by δ/2).
+Table 4.7 states its frequency error on λ (§4.3.3.2): :meth:`Noise.table_4_7` converts.
 """
 
 from __future__ import annotations
@@ -26,13 +27,27 @@ from jaxfem import Model
 
 
 class Noise(eqx.Module):
-    """Magnitudes of the Table 4.7 errors (fractions): ``relative`` σ on each shape
-    component, ``absolute`` a of the uniform error relative to each mode's largest
-    component, ``frequency`` σ on each eigenvalue λ = ω². Arrays under ``vmap``."""
+    """Measurement noise as stated by the engineer (relative standard deviations, fractions):
+    ``frequency`` σ on each natural frequency f, ``relative`` σ on each shape component,
+    ``absolute`` a of the uniform shape error relative to each mode's largest component
+    (Table 4.7), ``damping`` σ on each damping ratio. The one statement of noise: it
+    simulates measurements (:func:`perturb`) and weighs residuals (:func:`updating.diagnose`).
+    Arrays under ``vmap``."""
 
+    frequency: Float[Array, ""] | float = 0.0
     relative: Float[Array, ""] | float = 0.0
     absolute: Float[Array, ""] | float = 0.0
-    frequency: Float[Array, ""] | float = 0.0
+    damping: Float[Array, ""] | float = 0.0
+
+    @property
+    def eigenvalue(self):
+        """σ on each eigenvalue λ = ω²: twice the frequency's (λ ∝ f², to first order)."""
+        return 2 * self.frequency
+
+    @classmethod
+    def table_4_7(cls, relative=0.0, absolute=0.0, frequency=0.0) -> "Noise":
+        """The Table 4.7 magnitudes, whose ``frequency`` error is σ on the eigenvalue λ."""
+        return cls(frequency=frequency / 2, relative=relative, absolute=absolute)
 
 
 def perturb(key: PRNGKeyArray, noise: Noise, lam: Float[Array, " n"], phi: Float[Array, "s n"]):
@@ -43,7 +58,7 @@ def perturb(key: PRNGKeyArray, noise: Noise, lam: Float[Array, " n"], phi: Float
     uni = jax.random.uniform(k_phi, phi.shape, dtype=phi.dtype, minval=-1.0, maxval=1.0)
     peak = jnp.max(jnp.abs(phi), axis=0)
     phi = phi * (1 + noise.relative * rel) + noise.absolute * peak * uni
-    lam = lam * (1 + noise.frequency * jax.random.normal(k_lam, lam.shape, dtype=lam.dtype))
+    lam = lam * (1 + noise.eigenvalue * jax.random.normal(k_lam, lam.shape, dtype=lam.dtype))
     return lam, phi
 
 

@@ -10,27 +10,25 @@ from __future__ import annotations
 
 import time
 import warnings
-from collections.abc import Callable
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
 import jaxfem
-from identification import ModalData, observation_matrix
-from jaxfem import Model
-from jaxfem._model import Opaque
+from identification import ModalData, observation_matrix, pair_modes
+from jaxfem import Model, Opaque
 
 from ._compiled import Compiled
-from ._correlation import pair_modes
-from ._parameters import ParameterSet, identical_columns, parameterise
-from ._eigensolvers import Direct
+from ._eigensolvers import Direct, resolve_eigensolver
 from ._engine import Settings, run
+from ._parameters import ParameterSet, identical_columns, parameterise
+from ._progress import Progress, ProgressFn
 from ._residuals import Problem, auto_eigenvalue_weights
 from ._result import Iteration, UpdateResult
 
 
-def _active_mask(test: ModalData, options) -> np.ndarray:
+def active_mask(test: ModalData, options) -> np.ndarray:
     ids = np.arange(1, len(test.frequencies_hz) + 1)
     active = np.ones(len(ids), bool) if options.active_modes is None else np.isin(ids, options.active_modes)
     active &= ~np.isin(ids, options.passive_modes)
@@ -77,7 +75,7 @@ def build_problem(model: Model, test: ModalData, parameters: ParameterSet,
         lam_e=jnp.asarray((2 * np.pi * np.asarray(test.frequencies_hz)) ** 2),
         phi_e=jnp.asarray(shapes),
         C=jnp.asarray(C),
-        active=jnp.asarray(_active_mask(test, opts)),
+        active=jnp.asarray(active_mask(test, opts)),
         lam_weight=jnp.ones(ne),
         mu=jnp.asarray(float(opts.regularisation)),
         n_model=int(n_model),
@@ -85,7 +83,7 @@ def build_problem(model: Model, test: ModalData, parameters: ParameterSet,
         use_phi=opts.residual in ("eigenvector", "combined"),
         min_mac=float(opts.min_mac),
         max_freq_dev=float(opts.max_freq_dev),
-        solver=opts.eigensolver,
+        sparse=resolve_eigensolver(opts.eigensolver, model),
     )
     theta0 = jnp.zeros(len(param.parameters))
     if opts.residual == "combined":
@@ -111,13 +109,13 @@ def _pairing(ev, test: ModalData, problem: Problem):
 
 
 def update(model: Model, test: ModalData, parameters: ParameterSet, *,
-           progress: Callable[[Iteration], None] | None = None) -> UpdateResult:
+           progress: ProgressFn | None = None) -> UpdateResult:
     """Update ``model`` against measured modes ``test`` (thesis §3.2, Fig. 3.1): the engine
     (:func:`updating._engine.run`) with the dense eigensolver, from α = 0.
 
     **Arguments:** the nominal model, the measured modes (sensors labelled by grid and
-    direction), the parameters and options; ``progress`` is called after every
-    accepted iteration. **Returns:** an :class:`UpdateResult`.
+    direction), the parameters and options; ``progress`` (:class:`updating.Progress`) after every
+    accepted iteration, its ``detail`` the :class:`Iteration`. **Returns:** an :class:`UpdateResult`.
 
     Two parameters on the same targets (:func:`identical_columns`) or more parameters
     than residual rows (:func:`underdetermined`), where JᵀJ is singular: a ``ValueError``
@@ -143,7 +141,8 @@ def update(model: Model, test: ModalData, parameters: ParameterSet, *,
     theta0 = jnp.zeros(len(problem.parameterisation.parameters))
 
     def report(k, alpha, cost, dev, mac):
-        progress(Iteration(k, alpha, dev, mac, cost))
+        it = Iteration(k, alpha, dev, mac, cost)
+        progress(Progress(f"iteration {int(k)}: cost {float(cost):.6e}", int(k), settings.max_iterations, it))
 
     state = Compiled(run)(theta0, problem, Direct(), jnp.zeros(0), settings, False, report if progress else None)
     h = state.history
@@ -166,5 +165,5 @@ def update(model: Model, test: ModalData, parameters: ParameterSet, *,
         sensor_modes={key: (np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model))
                       for key, ev in (("before", state.start), ("after", state.evaluation))},
         parameterisation=problem.parameterisation,
-        warnings=notes,
+        warnings=tuple(notes),
     )

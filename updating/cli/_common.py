@@ -2,18 +2,20 @@
 
 from __future__ import annotations
 
+import functools
+import inspect
 import json
 import warnings
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import Annotated, NoReturn
+from typing import Annotated, NoReturn, get_type_hints
 
 import numpy as np
 import typer
 
-from .._report import json_safe
+from .. import json_safe
 
 ModelArg = Annotated[Path, typer.Argument(metavar="MODEL.bdf", exists=True, dir_okay=False,
                                           help="Nastran bulk data (SI units)")]
@@ -88,8 +90,7 @@ def read_dataset(path: Path, key: str, what: str, dataset: int, length_units: st
     no such dataset, and saying so when FRFs are asked of time histories or the reverse.
     ``content``: a dict to receive everything the file holds. ``dof_map``: CSV
     channel,node,direction for channel-only records (``--dof-map``)."""
-    from identification import read_dof_map, read_uff
-    from identification._uff import dataset58_function_types
+    from identification import dataset58_function_types, read_dof_map, read_uff
 
     def once(message) -> str:  # read_uff's messages begin with the path
         return str(message) if str(path) in str(message) else f"{path}: {message}"
@@ -161,12 +162,39 @@ AlignOpt = Annotated[bool, typer.Option(
 @dataclass(frozen=True)
 class Geometry:
     """The test-geometry options of a command (``--map``, ``--max-distance``,
-    ``--test-units``, ``--align``)."""
+    ``--test-units``, ``--align``), declared once: each field's annotation is its typer
+    option (name, help, checks) and its default the option's (:func:`geometry_options`)."""
 
-    map: str = "auto"
-    max_distance: float | None = None
-    test_units: str | None = None
-    align: bool = False
+    map: MapOpt = "auto"
+    max_distance: MaxDistanceOpt = None
+    test_units: TestUnitsOpt = None
+    align: AlignOpt = False
+
+
+DEFAULT_GEOMETRY = Geometry()  # a command's placeholder default; :func:`geometry_options` replaces it
+
+
+def geometry_options(command: Callable) -> Callable:
+    """``command`` with its parameter ``geometry: Geometry`` shown to typer as the fields
+    of :class:`Geometry`, in its place (same options, help texts and defaults in every
+    command), and passed on to it as one :class:`Geometry`."""
+    hints, declared = get_type_hints(command, include_extras=True), get_type_hints(Geometry, include_extras=True)
+    signature = inspect.signature(command)
+    if "geometry" not in signature.parameters:
+        raise TypeError(f"{command.__name__} has no parameter 'geometry'")
+    params = []
+    for p in signature.parameters.values():
+        params += ([inspect.Parameter(f.name, p.kind, default=f.default, annotation=declared[f.name])
+                    for f in fields(Geometry)] if p.name == "geometry" else [p.replace(annotation=hints[p.name])])
+
+    @functools.wraps(command)
+    def wrapped(*args, **kwargs):
+        geometry = Geometry(**{f.name: kwargs.pop(f.name) for f in fields(Geometry) if f.name in kwargs})
+        return command(*args, geometry=geometry, **kwargs)
+
+    wrapped.__signature__ = inspect.Signature(params, return_annotation=hints.get("return", inspect.Signature.empty))
+    wrapped.__annotations__ = {p.name: p.annotation for p in params} | {"return": hints.get("return")}
+    return wrapped
 
 
 def map_geometry(model, test, nodes: dict, units: dict, test_path: Path, geometry: Geometry):
@@ -190,9 +218,11 @@ def map_geometry(model, test, nodes: dict, units: dict, test_path: Path, geometr
 
 
 def check_solver(solver: str | None) -> str:
-    """``--solver``: ``dense`` or ``sparse`` (None: ``auto``); exit 2 otherwise."""
-    if solver not in (None, "dense", "sparse", "auto"):
-        fail(f"--solver {solver!r}: dense | sparse")
+    """``--solver``: a name of :data:`updating.EIGENSOLVERS` (None: ``auto``); exit 2 otherwise."""
+    from .. import EIGENSOLVERS
+
+    if solver not in (None, *EIGENSOLVERS):
+        fail(f"--solver {solver!r}: {' | '.join(EIGENSOLVERS)}")
     return solver or "auto"
 
 
@@ -208,7 +238,7 @@ def load_inputs(model_path: Path, test_path: Path, params_path: Path | None = No
 
     from identification import observation_matrix
 
-    from .._parameters import ParameterSet, parameterise
+    from .. import ParameterSet, parameterise
 
     params = None
     check_solver(solver)
@@ -256,7 +286,7 @@ def frf_prediction(path: Path, test, initial, updated, plots: Path | None, gmap=
     """Measured FRFs against the initial and updated model's predictions (FRAC, dB;
     thesis §4.2.5.3), printed per pair; ``plots``: also ``frf.png`` of the first pair;
     ``gmap``: the test geometry's map (:func:`map_geometry`) applied to the FRFs' DoFs."""
-    from .._prediction import frf_correlation, predict_frf
+    from .. import frf_correlation, predict_frf
 
     frf = read_dataset(path, "frfs", "FRFs", 58)
     if gmap is not None:
@@ -277,7 +307,7 @@ def frf_prediction(path: Path, test, initial, updated, plots: Path | None, gmap=
             typer.echo(f"FRF {out} / {inp}: FRAC {pairs[-1]['frac_before']:.3f} → {pairs[-1]['frac_after']:.3f}, "
                        f"mean |Δ| {pairs[-1]['mean_abs_db_before']:.2f} → {pairs[-1]['mean_abs_db_after']:.2f} dB")
     if plots is not None:
-        from .._plots import plot_frf_overlay
+        from ..report import plot_frf_overlay
 
         unit = {"receptance": "m/N", "mobility": "m/(s·N)", "accelerance": "m/(s²·N)"}[frf.kind]
         plot_frf_overlay(frf.frequencies_hz, frf.values[:, 0, 0],

@@ -8,9 +8,27 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from ._common import (AlignOpt, AllowUnsupportedOpt, Geometry, JsonOut, MapOpt, MaxDistanceOpt, ModelArg, MpcSetOpt,
-                      PlotsOut, SolverOpt, SpcSetOpt, TestArg, TestUnitsOpt, check_plots, check_solver, fail,
-                      load_inputs, mode_labels, print_pairing, write_json)
+from .. import Options
+from ._common import (
+    DEFAULT_GEOMETRY,
+    AllowUnsupportedOpt,
+    Geometry,
+    JsonOut,
+    ModelArg,
+    MpcSetOpt,
+    PlotsOut,
+    SolverOpt,
+    SpcSetOpt,
+    TestArg,
+    check_plots,
+    check_solver,
+    fail,
+    geometry_options,
+    load_inputs,
+    mode_labels,
+    print_pairing,
+    write_json,
+)
 
 
 def check_thresholds(n: int | None, min_mac: float, max_freq_dev: float, max_automac: float | None = None) -> None:
@@ -28,6 +46,7 @@ def check_thresholds(n: int | None, min_mac: float, max_freq_dev: float, max_aut
             fail(f"{flag} {value:g}: must be {what}")
 
 
+@geometry_options
 def correlate(
     model_path: ModelArg,
     test_path: TestArg,
@@ -38,13 +57,10 @@ def correlate(
                          "(one self-contained HTML file)")] = None,
     n: Annotated[int | None, typer.Option("-n", "--n-modes",
                                           help="model modes to compute (default: twice the test modes, at least 6 spare; as n_model_modes)")] = None,
-    min_mac: Annotated[float, typer.Option("--min-mac", help="pairing threshold on MAC")] = 0.65,
-    max_freq_dev: Annotated[float, typer.Option("--max-freq-dev", help="pairing threshold on |Δf| (fraction)")] = 0.30,
+    min_mac: Annotated[float, typer.Option("--min-mac", help="pairing threshold on MAC")] = Options.min_mac,
+    max_freq_dev: Annotated[float, typer.Option("--max-freq-dev", help="pairing threshold on |Δf| (fraction)")] = Options.max_freq_dev,
     solver: SolverOpt = None,
-    map_method: MapOpt = "auto",
-    max_distance: MaxDistanceOpt = None,
-    test_units: TestUnitsOpt = None,
-    align: AlignOpt = False,
+    geometry: Geometry = DEFAULT_GEOMETRY,
     allow_unsupported: AllowUnsupportedOpt = False,
     spc_set: SpcSetOpt = None,
     mpc_set: MpcSetOpt = None,
@@ -53,63 +69,42 @@ def correlate(
 ) -> None:
     """Correlate model and test modes: pairing by MAC and Δf, AutoMAC, COMAC; warnings of
     spatial aliasing."""
-    import jaxfem
+    import identification as corr
 
-    from .. import _correlation as corr
-    from .._solve import n_model_modes
+    from .. import correlate as correlate_modes
 
     check_plots(plots)
     check_thresholds(n, min_mac, max_freq_dev, max_automac)
-    model, test, C, _, gmap, content = load_inputs(model_path, test_path,
-                                          geometry=Geometry(map_method, max_distance, test_units, align),
-                                          allow_unsupported=allow_unsupported, sets=(spc_set, mpc_set))
-    ne = test.n_modes
-    n_model = n_model_modes(model, ne, n)
+    model, test, _, _, gmap, content = load_inputs(model_path, test_path, geometry=geometry,
+                                                   allow_unsupported=allow_unsupported, sets=(spc_set, mpc_set))
     try:
-        lam, phi = jaxfem.modes(model, n_model, solver=check_solver(solver))
+        res = correlate_modes(model, test, n_modes=n, min_mac=min_mac, max_freq_dev=max_freq_dev,
+                              max_automac=max_automac, solver=check_solver(solver), model_name=str(model_path),
+                              test_name=str(test_path), geometry=gmap)
     except ValueError as err:
         fail(f"{model_path}: {err}")
-    f_a, phi_a = np.asarray(jaxfem.frequencies_hz(lam)), C @ np.asarray(phi)
-    f_e, phi_e = np.asarray(test.frequencies_hz), np.asarray(test.shapes)
-    try:
-        pairing = corr.pair_modes(f_a, phi_a, f_e, phi_e, min_mac=min_mac, max_freq_dev=max_freq_dev)
-    except ValueError as err:
-        fail(str(err))
-    auto = np.asarray(corr.automac(phi_e))
-    try:
-        aliasing = corr.aliasing(phi_a, phi_e, f_a, f_e, min_mac=pairing.min_mac, max_automac=max_automac,
-                                 max_freq_dev=pairing.max_freq_dev)
-    except ValueError as err:
-        fail(f"--max-automac: {err}")
-    labels = test.sensors.labels
-    if pairing.test.size:
-        co = np.asarray(corr.comac(phi_a[:, pairing.model], phi_e[:, pairing.test]))
-        comac_rows = [{"sensor": labels[i], "value": float(co[i])} for i in np.argsort(co, kind="stable")]
-    else:
-        comac_rows = []
-    result = {"model": str(model_path), "test": str(test_path), "n_model_modes": n_model,
-              **pairing.to_json(), "automac": auto.tolist(), "comac": comac_rows,
-              "test_geometry": gmap.to_json(), "aliasing": aliasing}
+    result = res.to_json()
+    pairing, ne, labels = res.pairing, test.n_modes, res.sensors
+    f_a, phi_a, f_e, phi_e = res.model_frequencies_hz, res.model_at_sensors, res.test_frequencies_hz, res.test_shapes
 
-    typer.echo(f"model {model_path}: {model.n_dof} DoFs, {n_model} modes; test {test_path}: "
+    typer.echo(f"model {model_path}: {model.n_dof} DoFs, {res.n_model_modes} modes; test {test_path}: "
                f"{ne} modes at {len(labels)} sensors")
     typer.echo(f"pairing: MAC ≥ {pairing.min_mac:.2f}, |Δf| ≤ {100 * pairing.max_freq_dev:.0f} %")
     print_pairing(pairing)
-    if result["paired_modes"]:
-        typer.echo(f"paired {len(result['paired_modes'])}/{ne}: RMS Δf {result['rms_freq_dev_pct']:.2f} %, "
-                   f"mean MAC {result['mean_mac']:.3f}")
+    if res.n_paired:
+        typer.echo(f"paired {res.n_paired}/{ne}: RMS Δf {res.rms_freq_dev_pct:.2f} %, mean MAC {res.mean_mac:.3f}")
     typer.echo("AutoMAC of the test shapes:")
     typer.echo("      " + "".join(f"{j:>6}" for j in range(1, ne + 1)))
-    for i, row in enumerate(auto, 1):
+    for i, row in enumerate(res.automac, 1):
         typer.echo(f"{i:>6}" + "".join(f"{v:>6.2f}" for v in row))
     typer.echo("COMAC per sensor (lowest first):")
-    for row in comac_rows:
-        typer.echo(f"  {row['sensor']:>12} {row['value']:.3f}")
-    for line in aliasing:
+    for sensor, value in res.comac_ranking:
+        typer.echo(f"  {sensor:>12} {value:.3f}")
+    for line in res.aliasing:
         typer.echo(f"warning: {line}", err=True)
     write_json(json_out, result)
     if plots is not None:
-        from .._plots import plot_freq_dev, plot_mac
+        from ..report import plot_freq_dev, plot_mac
 
         try:
             written = [
@@ -121,11 +116,11 @@ def correlate(
             fail(f"cannot write plots to {plots}: {err}")
         typer.echo("wrote " + ", ".join(str(w) for w in written))
     if report is not None:
-        from .._shape_view import correlation_view, measured_geometry
+        from ..report import correlation_view, measured_geometry
 
         try:
             nodes, lines, names = measured_geometry(content, gmap)
-            view = correlation_view(report / "shapes.html", model=model, phi=np.asarray(phi), test=test,
+            view = correlation_view(report / "shapes.html", model=model, phi=res.model_shapes, test=test,
                                     at_sensors=phi_a, pairing=pairing, test_nodes=nodes, test_lines=lines,
                                     names=names, title=f"mode shapes: {test_path.name} vs {model_path.name}")
         except (ValueError, OSError) as err:

@@ -19,7 +19,7 @@ def demo(
     winner, update again and write the report (a few minutes on 2 cores)."""
     import time
 
-    from .._demo import HIDDEN, PARAMETERS, demo_case
+    from ..diagnosis import HIDDEN, PARAMETERS, demo_case
 
     start = time.perf_counter()
     typer.echo(f"simulating the measurement (hidden from the diagnosis: {HIDDEN}; fuselage stiffness +6 %; "

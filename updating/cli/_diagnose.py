@@ -8,9 +8,25 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from ._common import (AlignOpt, AllowUnsupportedOpt, Geometry, MapOpt, MaxDistanceOpt, ModelArg, MpcSetOpt,
-                      SolverOpt, SpcSetOpt, TestArg, TestUnitsOpt, check_plots, check_solver, fail, frf_prediction,
-                      load_inputs, load_test, mode_labels, write_json)
+from ._common import (
+    DEFAULT_GEOMETRY,
+    AllowUnsupportedOpt,
+    Geometry,
+    ModelArg,
+    MpcSetOpt,
+    SolverOpt,
+    SpcSetOpt,
+    TestArg,
+    check_plots,
+    check_solver,
+    fail,
+    frf_prediction,
+    geometry_options,
+    load_inputs,
+    load_test,
+    mode_labels,
+    write_json,
+)
 
 
 def _fmt(x, spec: str) -> str:
@@ -74,7 +90,7 @@ def _surface_figure(rep: dict, diag, model, test):
     """The element indicator as a colour map on the shells, with the test's sensor grids
     and the patch of the first-ranked effect when it names elements; None for a model
     without shells."""
-    from .._plots import plot_surface
+    from ..report import plot_surface
 
     if len(model.quads.ids) + len(model.trias.ids) == 0:
         return None
@@ -87,8 +103,16 @@ def _surface_figure(rep: dict, diag, model, test):
 
 def _figures(rep: dict, diag, confirmation, model, test, report: Path) -> dict:
     """The report's plots: comparison, localisation, ranking and, with an effect added, after."""
-    from .. import _correlation as corr
-    from .._plots import plot_convergence, plot_damping, plot_effect_ranking, plot_freq_dev, plot_mac, plot_structure
+    import identification as corr
+
+    from ..report import (
+        plot_convergence,
+        plot_damping,
+        plot_effect_ranking,
+        plot_freq_dev,
+        plot_mac,
+        plot_structure,
+    )
 
     f_e, phi_e = np.asarray(test.frequencies_hz), np.asarray(test.shapes)
     f_a, phi_a = diag.sensor_modes
@@ -134,20 +158,17 @@ def _shape_views(diag, confirmation, test, gmap, params, options, report: Path,
     each paired anew with the parameter file's thresholds; {link text: file name}. A view
     that cannot be made is a warning, not the loss of the report."""
     import jaxfem
-    from identification import observation_matrix
+    from identification import observation_matrix, pair_modes
 
-    from .._correlation import pair_modes
-    from .._shape_view import correlation_view, measured_geometry
-    from .._solve import n_model_modes
+    from .. import eigensolver_name, n_model_modes
+    from ..report import correlation_view, measured_geometry
 
     limits = {} if params is None else {"min_mac": params.options.min_mac,
                                         "max_freq_dev": params.options.max_freq_dev}
     models = [("the initial model", "shapes.html", diag.model)]
     if confirmation is not None:
         models.append(("the model with the effect, updated", "shapes_after.html", confirmation.after.model))
-    solver = options.eigensolver
-    if solver == "auto" and params is not None:  # as diagnose: the parameter file's eigensolver
-        solver = params.options.eigensolver
+    solver = eigensolver_name(options.eigensolver, params)  # as diagnose: else the parameter file's
     f_e, phi_e = np.asarray(test.frequencies_hz), np.asarray(test.shapes)
     views = {}
     try:
@@ -173,8 +194,9 @@ def diagnosis(model, test, params, *, model_name: str, test_name: str, json_out:
     (``reference``: the reference state's file and per-mode change, when the test is a change;
     ``gmap``: the test geometry's map onto the model; ``test_content``: what was read
     from the test file (:func:`identification.read_uff`), for the 3-D view's test nodes and lines)."""
-    from .._diagnose import DiagnoseOptions, add_effect, diagnose
-    from .._report import json_safe, write_report
+    from .. import json_safe
+    from ..diagnosis import DiagnoseOptions, add_effect, diagnose
+    from ..report import write_report
 
     def say(line: str) -> None:
         typer.echo(f"[diagnose] {line}", err=True)
@@ -199,12 +221,12 @@ def diagnosis(model, test, params, *, model_name: str, test_name: str, json_out:
         typer.echo(f"adding {diag.best.kind} at {diag.best.where()} and updating again "
                    "(passive modes held out of the fit):")
 
-        def progress(it) -> None:
-            typer.echo(f"[update] iteration {it.iteration:3d}  cost {it.cost:.4e}", err=True)
+        def progress(p) -> None:
+            typer.echo(f"[update] iteration {p.detail.iteration:3d}  cost {p.detail.cost:.4e}", err=True)
 
         try:
             confirmation = add_effect(model, test, diag.best, params, progress=progress,
-                                      noise_freq=options.noise_freq)
+                                      noise=options.noise)
         except ValueError as err:
             fail(f"cannot add {diag.best.kind} at {diag.best.where()} to {model_name}: {err}")
         rep["after"] = confirmation.to_json()
@@ -225,6 +247,7 @@ def diagnosis(model, test, params, *, model_name: str, test_name: str, json_out:
     return rep
 
 
+@geometry_options
 def diagnose(
     model_path: ModelArg,
     test_path: TestArg,
@@ -240,10 +263,7 @@ def diagnose(
         "--noise-damping", help="expected error of measured damping ratios, % of each ratio (1σ); used when TEST "
                                 "has damping ratios of at least four modes")] = 10.0,
     solver: SolverOpt = None,
-    map_method: MapOpt = "auto",
-    max_distance: MaxDistanceOpt = None,
-    test_units: TestUnitsOpt = None,
-    align: AlignOpt = False,
+    geometry: Geometry = DEFAULT_GEOMETRY,
     allow_unsupported: AllowUnsupportedOpt = False,
     spc_set: SpcSetOpt = None,
     mpc_set: MpcSetOpt = None,
@@ -259,19 +279,20 @@ def diagnose(
     """Where does the model fail, and which physical effect is missing? Localise the error,
     rank candidate effects by Bayesian evidence, test the most probable on held-out modes,
     add it and update again."""
-    from .._diagnose import DiagnoseOptions
+    from .. import Noise
+    from ..diagnosis import DiagnoseOptions
 
     check_plots(report)
     if not (noise_freq > 0 and noise_shape > 0 and noise_damping > 0):
         fail("--noise-freq, --noise-shape and --noise-damping must be positive (percent)")
     model, test, _, params, gmap, content = load_inputs(model_path, test_path, params_path, solver,
-                                               Geometry(map_method, max_distance, test_units, align),
+                                               geometry,
                                                allow_unsupported, (spc_set, mpc_set))
     change = None
     if reference_path is not None:
         test, change = _relative(model, test, reference_path, check_solver(solver) or "auto", gmap)
-    options = DiagnoseOptions(noise_freq=noise_freq / 100, noise_shape=noise_shape / 100,
-                              noise_damping=noise_damping / 100, eigensolver=check_solver(solver), ray=ray)
+    noise = Noise(frequency=noise_freq / 100, relative=noise_shape / 100, damping=noise_damping / 100)
+    options = DiagnoseOptions(noise=noise, eigensolver=check_solver(solver), ray=ray)
     diagnosis(model, test, params, model_name=model_path.name, test_name=test_path.name, json_out=json_out,
               report=report, frf_path=frf_path, options=options,
               reference=None if change is None else {"file": reference_path.name, "modes": change}, gmap=gmap,
@@ -284,7 +305,7 @@ def _relative(model, test, reference_path: Path, solver: str, gmap):
     at the test's nodes (``gmap``)."""
     from identification import observation_matrix
 
-    from .._reference import relative_to
+    from ..diagnosis import relative_to
 
     reference = gmap.apply(load_test(reference_path))
     try:

@@ -8,7 +8,14 @@ from typing import Annotated
 
 import typer
 
-from ._common import DofMapOpt, check_plots, echoed_warnings, fail, read_dataset, write_json
+from ._common import (
+    DofMapOpt,
+    check_plots,
+    echoed_warnings,
+    fail,
+    read_dataset,
+    write_json,
+)
 
 
 def identify(
@@ -37,8 +44,8 @@ def identify(
     outputs (roving hammer) are read by reciprocity H_ij = H_ji: the shapes come at every
     hammer point. When no mode is found the diagram (PNG) and the JSON are written all the
     same, for a look at which options to change."""
+    from identification import IdentificationError
     from identification import identify as run_identify
-    from identification._fitting import IdentificationError
 
     check_plots(plots)
     order_list = _orders(orders)

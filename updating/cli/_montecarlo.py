@@ -12,16 +12,8 @@ import typer
 from ._common import PlotsOut, check_plots, echoed_warnings, fail, write_json
 
 
-def _duration(seconds: float) -> str:
-    if not np.isfinite(seconds):
-        return "–"
-    minutes, s = divmod(round(seconds), 60)
-    hours, minutes = divmod(minutes, 60)
-    return f"{hours} h {minutes:02d} min" if hours else f"{minutes} min {s:02d} s" if minutes else f"{s} s"
-
-
 def _load_study(path: Path):
-    from .._montecarlo import Study
+    from ..studies import Study
 
     try:
         return Study.from_toml(path)
@@ -76,10 +68,27 @@ def _study_summary(result) -> None:
                f"statistics): {failures}; redone with full eigensolves: {result.fallbacks}")
 
 
-def _progress(p: dict) -> None:
-    typer.echo(f"[montecarlo] chunk {p['chunk']}/{p['chunks']} (n = {p['n_modes']}): "
-               f"{p['done']}/{p['total']} samples, {p['rate']:.3g} samples/s, "
-               f"ETA {_duration(p['seconds_left'])}, {p['failed']} failed, {p['fallbacks']} fallbacks", err=True)
+def _progress(p) -> None:
+    typer.echo(f"[montecarlo] {p.message}", err=True)
+
+
+def _chunk_directory(out: Path, study) -> Path:
+    """``out``, checked as the study's chunk directory; says what a rerun resumes from it."""
+    from ..studies import ChunkStore
+
+    try:
+        store = ChunkStore(out, study)
+    except (ValueError, OSError) as err:
+        fail(f"--out: {err}")
+    chunks = study.chunks()
+    found = [c for c in chunks if store.path(c).exists()]
+    if found:
+        rest = f"{len(chunks) - len(found)} to compute" if len(found) < len(chunks) else "nothing to compute"
+        typer.echo(f"resuming from {out}: {len(found)} of {len(chunks)} chunks found "
+                   f"({sum(b - a for _, a, b in found)} samples); {rest}")
+    else:
+        typer.echo(f"finished chunks are written to {out} (a rerun resumes from there)")
+    return out
 
 
 def montecarlo(
@@ -101,8 +110,8 @@ def montecarlo(
     correction-factor, frequency and MAC deviations (eq. 4.4, eq. 4.5, eq. 4.6, Figs. 4.24–4.32)."""
     import jax
 
-    from .._montecarlo import Runner, _Store
-    from .._montecarlo import montecarlo as run_study
+    from ..studies import Runner, duration
+    from ..studies import montecarlo as run_study
 
     check_plots(plots)
     study = _load_study(config)
@@ -119,26 +128,14 @@ def montecarlo(
         except (ValueError, OSError, KeyError) as err:
             fail(f"{config}: cannot set up the study: {err}")
     _study_header(config, study, runner, f"{len(chosen)} of {len(available)} ({chosen[0].platform})")
-    out = out if out is not None else json_out.with_suffix(".chunks")
-    try:
-        store = _Store(out, study)
-    except (ValueError, OSError) as err:
-        fail(f"--out: {err}")
-    chunks = study.chunks()
-    found = [c for c in chunks if store.path(c).exists()]
-    if found:
-        rest = f"{len(chunks) - len(found)} to compute" if len(found) < len(chunks) else "nothing to compute"
-        typer.echo(f"resuming from {out}: {len(found)} of {len(chunks)} chunks found "
-                   f"({sum(b - a for _, a, b in found)} samples); {rest}")
-    else:
-        typer.echo(f"finished chunks are written to {out} (a rerun resumes from there)")
+    out = _chunk_directory(out if out is not None else json_out.with_suffix(".chunks"), study)
     typer.echo("error-free reference updates (compiled once per number of modes) ...", err=True)
 
     try:
         if ray is None:
             result = run_study(study, out=out, progress=_progress, runner=runner)
         else:
-            from .._ray import montecarlo_ray
+            from ..studies import montecarlo_ray
 
             try:
                 result = montecarlo_ray(study, address=None if ray == "local" else ray, out=out,
@@ -151,7 +148,7 @@ def montecarlo(
         fail(f"{config}: {err}")
     write_json(json_out, dict(result.to_json(), config=str(config), devices=len(chosen)))
     if plots is not None:
-        from .._montecarlo_plots import plot_montecarlo
+        from ..report import plot_montecarlo
 
         try:
             written = plot_montecarlo(result, plots, name=config.name)
@@ -159,4 +156,4 @@ def montecarlo(
             fail(f"cannot write plots to {plots}: {err}")
         typer.echo("wrote " + ", ".join(str(w) for w in written))
     _study_summary(result)
-    typer.echo(f"done in {_duration(result.seconds)}")
+    typer.echo(f"done in {duration(result.seconds)}")

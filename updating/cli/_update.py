@@ -9,9 +9,26 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from ._common import (AlignOpt, AllowUnsupportedOpt, Geometry, JsonOut, MapOpt, MaxDistanceOpt, ModelArg, MpcSetOpt,
-                      PlotsOut, SolverOpt, SpcSetOpt, TestArg, TestUnitsOpt, check_plots, echoed_warnings, fail,
-                      frf_prediction, load_inputs, mode_labels, write_json)
+from ._common import (
+    DEFAULT_GEOMETRY,
+    AllowUnsupportedOpt,
+    Geometry,
+    JsonOut,
+    ModelArg,
+    MpcSetOpt,
+    PlotsOut,
+    SolverOpt,
+    SpcSetOpt,
+    TestArg,
+    check_plots,
+    echoed_warnings,
+    fail,
+    frf_prediction,
+    geometry_options,
+    load_inputs,
+    mode_labels,
+    write_json,
+)
 
 
 def _add_effects(model, test, params, specs: list[str], progress):
@@ -23,9 +40,8 @@ def _add_effects(model, test, params, specs: list[str], progress):
     **Returns:** the model with every effect at its starting values, the
     :class:`~updating.Confirmation`.
     """
-    from .._diagnose import add_effect, start_values
-    from .._effects import effect_parameters, parse_effect
-    from .._solve import _active_mask
+    from .. import active_mask
+    from ..diagnosis import add_effect, effect_parameters, parse_effect, start_values
 
     steps = []
     for spec in specs:
@@ -42,7 +58,7 @@ def _add_effects(model, test, params, specs: list[str], progress):
     for before, effect, extended in steps[:-1]:
         extra += [replace(p, name=f"{p.name}_{len(extra) + 1}") for p in effect_parameters(effect, before, extended)]
     params = replace(params, parameters=tuple(params.parameters) + tuple(extra))
-    passive = tuple(int(j) + 1 for j in np.flatnonzero(~_active_mask(test, params.options)))
+    passive = tuple(int(j) + 1 for j in np.flatnonzero(~active_mask(test, params.options)))
     before, last, _ = steps[-1]
     return model, add_effect(before, test, last, params, passive_modes=passive, progress=progress)
 
@@ -85,8 +101,9 @@ def _print_pairings(result: dict, res) -> None:
 
 
 def _plot(res, test, plots: Path) -> list[Path]:
-    from .. import _correlation as corr
-    from .._plots import plot_convergence, plot_freq_dev, plot_mac
+    import identification as corr
+
+    from ..report import plot_convergence, plot_freq_dev, plot_mac
 
     f_e, phi_e = np.asarray(test.frequencies_hz), np.asarray(test.shapes)
     active = np.asarray(res.active, dtype=bool)
@@ -101,6 +118,7 @@ def _plot(res, test, plots: Path) -> list[Path]:
     return written
 
 
+@geometry_options
 def update(
     model_path: ModelArg,
     test_path: TestArg,
@@ -115,10 +133,7 @@ def update(
         help="add a physical effect and update its parameters too, e.g. joint:node=6001, "
              "added_mass:node=2015, frequency_dependent_stiffness:pid=41 (repeatable)")] = None,
     solver: SolverOpt = None,
-    map_method: MapOpt = "auto",
-    max_distance: MaxDistanceOpt = None,
-    test_units: TestUnitsOpt = None,
-    align: AlignOpt = False,
+    geometry: Geometry = DEFAULT_GEOMETRY,
     allow_unsupported: AllowUnsupportedOpt = False,
     spc_set: SpcSetOpt = None,
     mpc_set: MpcSetOpt = None,
@@ -133,15 +148,16 @@ def update(
     (modal superposition, viscous ratio = mean measured modal damping, else 1 %) and
     compared by FRAC and mean |Δ| in dB (validation by prediction, thesis §4.2.5.3).
     """
-    from .._solve import update as run_update
+    from .. import update as run_update
 
     check_plots(plots)
     model, test, _, params, gmap, _ = load_inputs(model_path, test_path, params_path, solver,
-                                               Geometry(map_method, max_distance, test_units, align),
+                                               geometry,
                                                allow_unsupported, (spc_set, mpc_set))
     last = {}
 
-    def progress(it) -> None:
+    def progress(p) -> None:
+        it = p.detail
         alpha = np.asarray(it.alpha)
         step = "–" if "alpha" not in last else f"{np.max(np.abs(alpha - last['alpha'])):.3e}"
         last["alpha"] = alpha

@@ -17,14 +17,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 
+import jaxfem
 from jaxfem import STRUCTURAL_BLOCKS, Model
-from jaxfem import _edit as edit
 
-from ._compiled import Compiled
+from .. import Extension, Parameter, extension
 from ._effects import (
     RADII,
     AbstractEffect,
@@ -37,25 +36,30 @@ from ._effects import (
     GroupMass,
     GroupStiffness,
     Joint,
+    PatchStiffness,
     Payload,
     Seam,
-    PatchStiffness,
     _seam_lines,
 )
-from ._extension import Extension, extension
-from ._element_sensitivity import KINDS, ElementJacobian, element_jacobian
-from ._localisation import reduction
-from ._parameters import Parameter
-from ._residuals import Problem, residuals
-from ._topology import constrained_components, element_grids, elements_at, masters, shell_size, total_mass
+from ._fit import Fit, HeldOut
+from ._screen import Screen, param_eids
+from ._topology import (
+    constrained_components,
+    element_grids,
+    elements_at,
+    masters,
+    shell_size,
+    total_mass,
+)
 
 
 @dataclass(eq=False)
 class Candidate:
     """An effect to try: its ``reference`` (θ = 0), its free parameters as masks for the
     shared-structure fit (``ext``, on its own ``model`` if it changes the structure), the θ grid
-    ``scan`` tried before fitting, its screening ρ, what the fit found (``result``) and the
-    effect at the fitted values (``effect``; the reference until then)."""
+    ``scan`` tried before fitting, its screening ρ and start ``theta0``; then its fit on all
+    test modes (:class:`~._fit.Fit`) and, for the most probable, its cross-validation
+    (:class:`~._fit.HeldOut`)."""
 
     reference: AbstractEffect
     ext: Extension | None  # None until shortlisted (a patch: :func:`patch_candidates`)
@@ -63,14 +67,11 @@ class Candidate:
     screen: float = float("nan")
     theta0: np.ndarray | None = None
     prior_mean: float | np.ndarray = 0.0
-    result: dict = field(default_factory=dict)
-    effect: AbstractEffect | None = None
-    solver: object = None  # its reduced eigensolver (updating._reduced), made when first fitted
     released: Released | None = None  # a released joint, seam or support: its springs in the shared model
+    fit: Fit | None = None
+    heldout: HeldOut | None = None
 
     def __post_init__(self):
-        if self.effect is None:
-            self.effect = self.reference
         if self.theta0 is None:
             self.theta0 = np.zeros(len(self.reference.prior_sd))
 
@@ -84,104 +85,6 @@ class Candidate:
         its reference; a stiffened joint's reference lies ``prior_mean`` below its θ = 0)."""
         sd = np.asarray(self.reference.prior_sd, float)
         return np.zeros(len(sd)) + self.prior_mean, sd
-
-
-# ---------------------------------------------------------------------------------------
-# the screening Jacobian
-
-
-MAC_LINEAR = 0.9  # a mode's shape rows enter the screen when it pairs with at least this MAC
-
-
-@dataclass
-class Screen:
-    """Weighted residual ``r`` at the baseline and its linearisation: ``jac`` per element
-    and kind of change (:mod:`updating._element_sensitivity`), ``J_b`` the baseline
-    parameters; ``row_mode``: test mode of each row; ``f_e``, ``f_ref`` (Hz)."""
-
-    r: np.ndarray
-    jac: ElementJacobian
-    J_b: np.ndarray
-    row_mode: np.ndarray
-    f_e: np.ndarray
-    f_ref: float
-
-    @classmethod
-    def at(cls, problem: Problem, theta, model: Model, params: tuple[Parameter, ...], f_e: np.ndarray,
-           kinds=KINDS, modes=None) -> Screen:
-        """At θ of ``problem`` (whose first parameters are ``params`` of ``model``); the
-        element columns of ``kinds`` (the baseline's stiffness and mass always); ``modes``:
-        the model's at θ if solved (:func:`~updating._element_sensitivity.element_jacobian`)."""
-        jac = element_jacobian(problem, np.asarray(theta), tuple(dict.fromkeys(("k", "m") + tuple(kinds))), modes)
-        screen = cls(jac.r, jac, np.zeros((len(jac.r), 0)), _row_modes(problem),
-                     f_e, float(np.exp(np.mean(np.log(f_e)))))
-        if all(p.kind in ("stiffness", "mass") and not p.nodes for p in params):
-            # a log-factor on a group is the sum of its elements' scales (d(k e^θ)/dθ = k)
-            cols = [screen.column({"stiffness": "k", "mass": "m"}[p.kind], _param_eids(model, p)) for p in params]
-            screen.J_b = np.concatenate(cols, axis=1) if cols else screen.J_b
-        else:
-            screen.J_b = _baseline_columns(problem, theta, len(params))
-        return screen
-
-    def column(self, scales: str, eids) -> np.ndarray:
-        """One column: the change ``scales`` (a kind of :data:`~updating._element_sensitivity.KINDS`:
-        stiffness "k", mass "m", a shell part, shell non-structural mass) of ``eids`` together."""
-        J, ids = self.jac.columns.get(scales), self.jac.ids.get(scales)
-        if J is None:
-            return np.zeros((len(self.r), 1))
-        return J[:, np.isin(ids, np.asarray(list(eids), np.int64))].sum(axis=1, keepdims=True)
-
-    def rho(self, columns: np.ndarray, joint: bool = False) -> np.ndarray | float:
-        """Method (a), :func:`~updating._localisation.reduction` of ``columns`` beside the
-        baseline's: on all rows or on the :meth:`linear` rows, whichever is higher."""
-        rows = self.linear()
-        return np.maximum(reduction(self.r, columns, self.J_b, joint=joint),
-                          reduction(self.r[rows], columns[rows], self.J_b[rows], joint=joint))
-
-    def linear(self) -> np.ndarray:
-        """The rows a linearised step can follow: the eigenvalue rows and the shape rows of
-        the modes paired with MAC ≥ :data:`MAC_LINEAR`. (A change that mixes modes, MAC 0.8,
-        leaves shape residuals beyond the linear range that drown the other rows: on the
-        2,500-DoF barrel they put a missing payload's mass screen on the skin. All rows
-        still count in :meth:`rho`: without them a ground spring on the GARTEUR fuselage
-        screened at the neighbouring grid.)"""
-        return (np.arange(len(self.r)) < len(self.f_e)) | (self.jac.mac[self.row_mode] >= MAC_LINEAR)
-
-    def element_reduction(self, scales: str = "k") -> dict[int, float]:
-        """ρ (:meth:`rho`) of each element's change ``scales`` alone."""
-        if scales not in self.jac.columns:
-            return {}
-        rho = self.rho(self.jac.columns[scales])
-        return {int(e): float(v) for e, v in zip(self.jac.ids[scales], rho)}
-
-    def step(self, columns: np.ndarray) -> np.ndarray:
-        """The linearised (Gauss–Newton) step of ``columns``' amplitudes on the :meth:`linear`
-        rows, the baseline parameters fitted with them."""
-        rows = self.linear()
-        a = np.concatenate([self.J_b, columns], axis=1)[rows]
-        return np.linalg.lstsq(a, -self.r[rows], rcond=1e-10)[0][self.J_b.shape[1]:]
-
-    def law_columns(self, g: np.ndarray) -> np.ndarray:
-        """A stiffness column and its frequency law: ``g`` and ``g·ln(f/f_ref)``."""
-        return np.concatenate([g, g * np.log(self.f_e[self.row_mode] / self.f_ref)[:, None]], axis=1)
-
-
-def _row_modes(problem: Problem) -> np.ndarray:
-    """Test mode of each residual row (eigenvalue rows, then eigenvector rows)."""
-    ne, ns = problem.phi_e.shape[1], problem.phi_e.shape[0]
-    return np.concatenate([np.arange(ne), np.tile(np.arange(ne), ns)])
-
-
-def _flat(theta, problem: Problem):
-    eps, _ = residuals(theta, problem)
-    return jnp.concatenate([jnp.ravel(eps[k]) for k in ("eigenvalue", "eigenvector")])
-
-
-def _baseline_columns(problem: Problem, theta, n_b: int) -> np.ndarray:
-    if n_b == 0:
-        return np.zeros((len(_row_modes(problem)), 0))
-    J = Compiled(jax.jacfwd(_flat))(jnp.asarray(theta), problem)
-    return np.asarray(J)[:, :n_b]
 
 
 # ---------------------------------------------------------------------------------------
@@ -351,13 +254,13 @@ def augment(model: Model, nodes: list[int], structures: list[AbstractEffect], f_
             continue
         before, model = model, stiff.add_to(model)
         stiffened.append(Released(stiff, *(stiff._halves(before, model) if stiff.split else (stiff._new(before, model), ()))))
-    model = edit.refresh(model)  # once for all structures
+    model = jaxfem.refresh(model)  # once for all structures
     dormant = []
     for node in list(nodes) + list(beyond):
         mass = AddedMass(nodes=(node,)).at_reference(nominal, f_e)
         spring = BoundarySpring(nodes=(node,)).at_reference(nominal, f_e)
-        model, eid = edit.add_mass(model, node, mass.m)
-        model, eids = edit.add_ground_springs(model, node, spring.k, (1, 2, 3))
+        model, eid = jaxfem.add_mass(model, node, mass.m)
+        model, eids = jaxfem.add_ground_springs(model, node, spring.k, (1, 2, 3))
         dormant += [(mass, [eid]), (spring, eids)]
     for shell, grids in region_shells(nominal, nodes):
         payload = Payload(nodes=grids, label=f"RBE3 over the grids of shell {shell}").at_reference(nominal, f_e)
@@ -374,7 +277,7 @@ def augment(model: Model, nodes: list[int], structures: list[AbstractEffect], f_
 def group_candidates(model: Model, aug: Model, params: tuple[Parameter, ...], screen: Screen) -> list[Candidate]:
     """Stiffness, mass and frequency law of the property groups (and halves) each kind
     offers, but not the engineer's parameters; screened by their joint residual reduction."""
-    taken = {(p.kind, tuple(sorted(_param_eids(model, p).tolist()))) for p in params}
+    taken = {(p.kind, tuple(sorted(param_eids(model, p).tolist()))) for p in params}
     out = []
     for kind in (GroupStiffness, GroupMass, FrequencyDependentStiffness):
         for effect in kind.candidates(model):
@@ -500,7 +403,7 @@ def structural_candidate(aug: Model, released: Released, theta0=None) -> Candida
 def seam_neighbours(aug: Model, c: Candidate, coarse: bool = False) -> list[Candidate]:
     """The seams next to a fitted one on its released line (:meth:`~updating._effects.Seam.neighbours`),
     to start at its fitted values."""
-    r, theta = c.released, c.result["theta"]
+    r, theta = c.released, c.fit.theta
     return [structural_candidate(aug, r.seam(s), theta[len(theta) - len(c.theta0):])
             for s in c.reference.neighbours(r.line, coarse)]
 
@@ -508,7 +411,7 @@ def seam_neighbours(aug: Model, c: Candidate, coarse: bool = False) -> list[Cand
 def seam_onward(aug: Model, a: Candidate, b: Candidate) -> Candidate | None:
     """The seam move a → b on their released line (:func:`seam_neighbours`) made once more
     from b, to start at b's fitted values; None where it leaves the line."""
-    line, theta = b.released.line, b.result["theta"]
+    line, theta = b.released.line, b.fit.theta
     start, n = line.index(b.reference.nodes[0]), len(b.reference.nodes)
     start, n = 2 * start - line.index(a.reference.nodes[0]), 2 * n - len(a.reference.nodes)
     if start < 0 or n < 2 or start + n > len(line):
@@ -522,7 +425,7 @@ def shortlist(cands: list[Candidate], best: int, per_kind: int, kinds, within: f
     screened = sorted(cands, key=lambda c: -np.nan_to_num(c.screen, nan=-np.inf))
     short = screened[:best]
     for kind in kinds:
-        of_kind = [c for c in screened if c.effect.kind == kind]
+        of_kind = [c for c in screened if c.reference.kind == kind]
         if of_kind:
             top = of_kind[0].screen
             short += [c for c in of_kind if c.screen >= within * top][:per_kind]
@@ -545,7 +448,7 @@ def group_screens(cands: list[Candidate]) -> dict[int, float]:
     """Best screening ρ of a whole property group's stiffness or mass, by pid."""
     out: dict[int, float] = {}
     for c in cands:
-        e = c.effect
+        e = c.reference
         if isinstance(e, (GroupStiffness, GroupMass)) and not e.eids and e.pids:
             out[e.pids[0]] = max(out.get(e.pids[0], 0.0), c.screen)
     return out
@@ -559,10 +462,6 @@ def node_max(model: Model, elem: dict[int, float]) -> dict[int, float]:
         if at:
             out[int(node)] = max(elem.get(e, 0.0) for e in at)
     return out
-
-
-def _param_eids(model: Model, p: Parameter) -> np.ndarray:
-    return np.union1d(model.element_ids(pids=p.pids) if p.pids else np.zeros(0, np.int64), np.asarray(p.eids, np.int64))
 
 
 def margin(model: Model, region: list[int], n: int, node_scores: dict[int, float]) -> list[int]:

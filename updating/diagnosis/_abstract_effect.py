@@ -10,8 +10,7 @@ import numpy as np
 
 from jaxfem import Model
 
-from ._extension import Extension
-from ._parameters import Parameter
+from .. import Extension, Parameter
 
 
 def _ids(ids) -> tuple[int, ...]:

@@ -16,15 +16,15 @@ follows modes that cross (§1.3.3.1).
 
 from __future__ import annotations
 
-import functools
-from collections.abc import Sequence
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import lineax as lx
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float, Inexact, Int
+
+MIN_MAC = 0.65  # the pairing rule's MAC threshold (thesis ch. 4; 0.60 in ch. 5)
+MAX_FREQ_DEV = 0.30  # and its largest |Δf| (fraction, eq. 4.1)
 
 
 def _common(*xs) -> tuple[Array, ...]:
@@ -125,6 +125,13 @@ def frequency_deviation(
     return (f_a - f_e) / f_e
 
 
+def rms_pct(dev) -> float | None:
+    """RMS (%) of the finite relative deviations (None if there are none)."""
+    dev = np.asarray(dev, float)
+    dev = dev[np.isfinite(dev)]
+    return float(100 * np.sqrt(np.mean(dev**2))) if dev.size else None
+
+
 @jax.jit
 def modal_scale_factor(
     phi_a: Inexact[ArrayLike, "n_dof n"], phi_e: Inexact[ArrayLike, "n_dof n"]
@@ -165,95 +172,6 @@ def cross_orthogonality(
     return (jnp.conj(a).T @ me) * _safe_rsqrt(ga[:, None] * ge[None, :]).astype(a.dtype)
 
 
-def _master_dofs(master: Sequence[int] | np.ndarray, n: int) -> Int[np.ndarray, " m"]:
-    """Master DoF indices (integers, or a boolean mask of length n), checked."""
-    idx = np.asarray(master)
-    if idx.dtype == bool:
-        if idx.shape != (n,):
-            raise ValueError(f"a boolean master mask must have shape ({n},), got {idx.shape}")
-        idx = np.flatnonzero(idx)
-    if idx.ndim != 1 or idx.shape[0] == 0 or not np.issubdtype(idx.dtype, np.integer):
-        raise ValueError(f"master must be a non-empty 1-D array of DoF indices, got {master!r}")
-    bad = idx[(idx < 0) | (idx >= n)]
-    if bad.size:
-        raise ValueError(f"master DoF index {bad[0]} is out of range 0..{n - 1}")
-    if np.unique(idx).size != idx.size:
-        raise ValueError("master DoF indices must be unique")
-    return idx.astype(np.int64)
-
-
-def _square(name: str, x) -> Float[Array, "n n"]:
-    x = jnp.asarray(x)
-    if x.ndim != 2 or x.shape[0] != x.shape[1]:
-        raise ValueError(f"{name} must be a square matrix, got shape {x.shape}")
-    return x
-
-
-def guyan(
-    K: Float[ArrayLike, "n n"], M: Float[ArrayLike, "n n"], master: Sequence[int] | np.ndarray
-) -> tuple[Float[Array, "m m"], Float[Array, "m m"]]:
-    """Guyan (1965) static condensation onto the master DoFs (thesis §1.3.3.2).
-
-    The slaves s follow the masters m statically, ``u_s = −K_ss⁻¹ K_sm u_m``, so
-    ``T = [I; −K_ss⁻¹ K_sm]`` and ``K_red = Tᵀ K T``, ``M_red = Tᵀ M T``. The reduced
-    eigenvalues bound the full ones from above (Rayleigh–Ritz) and are exact when the
-    slaves carry no mass. Dense arrays (``ElementMatrix.todense()``); differentiable.
-
-    **Arguments:** symmetric ``K`` (positive definite on the slaves), ``M``; ``master``:
-    DoF indices (or a boolean mask); the reduced DoFs follow the order of ``master``.
-
-    **Returns:** ``(K_red, M_red)``.
-    """
-    K, M = _square("K", K), _square("M", M)
-    if K.shape != M.shape:
-        raise ValueError(f"K is {K.shape} but M is {M.shape}")
-    n = K.shape[0]
-    m = _master_dofs(master, n)
-    s = np.setdiff1d(np.arange(n), m)
-    return _condense(*_common(K, M), tuple(m.tolist()), tuple(s.tolist()))
-
-
-@functools.partial(jax.jit, static_argnums=(2, 3))
-def _condense(K: Float[Array, "n n"], M: Float[Array, "n n"], m: tuple[int, ...], s: tuple[int, ...]):
-    m, s = np.asarray(m, np.int64), np.asarray(s, np.int64)
-    T = jnp.zeros((K.shape[0], m.size), K.dtype).at[m, np.arange(m.size)].set(1.0)
-    if s.size:
-        op = lx.MatrixLinearOperator(K[np.ix_(s, s)], (lx.symmetric_tag, lx.positive_semidefinite_tag))
-        # Batching over the right-hand sides only: lineax factors K_ss once.
-        solve = jax.vmap(lambda b: lx.linear_solve(op, b, lx.Cholesky()).value, in_axes=1, out_axes=1)
-        x = solve(K[np.ix_(s, m)])
-        x = eqx.error_if(
-            x, ~jnp.all(jnp.isfinite(x)), "K_ss is singular: the slaves form a mechanism"
-        )
-        T = T.at[s].set(-x)
-    k_red, m_red = T.T @ K @ T, T.T @ M @ T
-    return 0.5 * (k_red + k_red.T), 0.5 * (m_red + m_red.T)
-
-
-def serep(
-    phi_full: Float[ArrayLike, "n r"], M: Float[ArrayLike, "n n"], master: Sequence[int] | np.ndarray
-) -> Float[Array, "m m"]:
-    """SEREP mass matrix on the master DoFs (O'Callahan, Avitabile & Riemer 1989).
-
-    ``T = Φ Φ_m⁺`` maps master motion onto the span of the r retained modes ``Φ`` (rows
-    ``Φ_m`` at the masters, ``r ≤ n_master``, full column rank); ``M_red = Tᵀ M T``.
-    Since ``T Φ_m = Φ``, the retained modes stay M_red-orthonormal at the masters and,
-    with ``K_red = Tᵀ K T``, their frequencies are reproduced exactly.
-
-    **Arguments:** ``phi_full``: retained modes on all n DoFs; ``M``: full mass matrix;
-    ``master``: DoF indices (or a boolean mask), order kept.
-    """
-    phi = jnp.asarray(phi_full)
-    M = _square("M", M)
-    if phi.ndim != 2 or phi.shape[0] != M.shape[0]:
-        raise ValueError(f"phi_full must be ({M.shape[0]}, r), got shape {phi.shape}")
-    m = _master_dofs(master, M.shape[0])
-    if phi.shape[1] > m.size:
-        raise ValueError(f"SEREP needs at most {m.size} retained modes (one per master), got {phi.shape[1]}")
-    phi, M = _common(phi, M)
-    T = phi @ jnp.linalg.pinv(phi[m])
-    m_red = T.T @ M @ T
-    return 0.5 * (m_red + m_red.T)
 
 
 @jax.jit
@@ -388,8 +306,8 @@ def pair_modes(
     f_e: Float[ArrayLike, " n_e"],
     phi_e: Inexact[ArrayLike, "n_dof n_e"],
     *,
-    min_mac: float = 0.65,
-    max_freq_dev: float = 0.30,
+    min_mac: float = MIN_MAC,
+    max_freq_dev: float = MAX_FREQ_DEV,
 ) -> Pairing:
     """Pair test and model modes one-to-one, maximising the total MAC (thesis §4.3.3.3).
 
@@ -444,9 +362,9 @@ def aliasing(
     f_a: Float[ArrayLike, " n_a"] | None = None,
     f_e: Float[ArrayLike, " n_e"] | None = None,
     *,
-    min_mac: float = 0.65,
+    min_mac: float = MIN_MAC,
     max_automac: float = 0.9,
-    max_freq_dev: float = 0.30,
+    max_freq_dev: float = MAX_FREQ_DEV,
 ) -> list[str]:
     """Signs of spatial aliasing, one line each (host-side): pairs of test modes whose
     AutoMAC (eq. 1.54 of the test shapes with each other) exceeds ``max_automac`` — the
@@ -484,8 +402,8 @@ def pair_modes_masked(
     f_e: Float[ArrayLike, " n_e"],
     phi_e: Inexact[ArrayLike, "n_dof n_e"],
     *,
-    min_mac: float | Float[ArrayLike, ""] = 0.65,
-    max_freq_dev: float | Float[ArrayLike, ""] = 0.30,
+    min_mac: float | Float[ArrayLike, ""] = MIN_MAC,
+    max_freq_dev: float | Float[ArrayLike, ""] = MAX_FREQ_DEV,
 ) -> tuple[Int[Array, " n_e"], Bool[Array, " n_e"]]:
     """Fixed-shape, jittable and vmappable mode pairing (same admissibility as :func:`pair_modes`).
 

@@ -21,10 +21,9 @@ import jaxfem
 from identification import Sensors, write_uff
 from jaxfem.io import read_bdf
 
+from .. import Noise, Options, Parameter, ParameterSet, simulate_test
 from ._effects import Effect
-from ._parameters import Options, Parameter, ParameterSet
 from ._topology import joint_reference
-from ._simulation import Noise, simulate_test
 
 HIDDEN = "a flexible joint at the fin root (RBE2 1029 → 6001, k_rot = 1/300 of its reference)"
 PARAMETERS = ParameterSet((Parameter("fuselage", "stiffness", pids=(1,)),
@@ -43,7 +42,7 @@ def demo_case(directory: Path, seed: int = 2026) -> tuple[Path, Path]:
     truth = jaxfem.correct(model, [model.element_ids(pids=[1])], jnp.array([0.06]))
     ref = joint_reference(model, (6001,), [501])
     truth = Effect("joint", nodes=(6001,), values={"k_trans": ref["k_trans"], "k_rot": ref["k_rot"] / 300}).apply(truth)
-    measured = simulate_test(truth, sensors, 14, Noise(relative=0.01, frequency=0.004), jax.random.key(seed), skip=6)
+    measured = simulate_test(truth, sensors, 14, Noise(frequency=0.002, relative=0.01), jax.random.key(seed), skip=6)
     nodes = {int(n): model.xyz[i] for i, n in enumerate(model.node_ids)}
     test_path = directory / "test.uff"
     write_uff(test_path, nodes=nodes, modes=measured)

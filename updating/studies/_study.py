@@ -18,8 +18,7 @@ from pathlib import Path
 import numpy as np
 import tomllib
 
-from . import _schema as schema
-from ._parameters import Options, Parameter, ParameterSet
+from .. import STUDY_EIGENSOLVERS, Options, Parameter, ParameterSet, schema
 
 CATEGORIES = ("relative", "absolute", "frequency")
 TABLE_4_7 = {"relative": (0.01, 0.02, 0.05, 0.10, 0.20),
@@ -43,7 +42,7 @@ class Study:
     of modes used in the update; ``errors``: magnitudes per category (fractions,
     Table 4.7); ``samples`` per category and magnitude; ``seed``; ``chunk_size``: samples
     per batch (the unit of incremental results and of Ray tasks); ``eigensolver``:
-    ``subspace`` or ``full`` (dense), or ``sparse`` (:func:`jaxfem.eigsh` in every
+    ``subspace`` or ``dense`` (every mode, refined: :class:`updating.Refined`), or ``sparse`` (:func:`jaxfem.eigsh` in every
     evaluation: models beyond the dense solver's reach); ``lockstep``: samples updated together under ``vmap`` on
     each device — 1 (in sequence) on CPUs, where a batch waits for its slowest sample
     (measured: 24 samples with 1/5/20 % errors in lockstep 1.9× slower per sample than in
@@ -183,7 +182,7 @@ _STUDY_SCHEMA = {
     "error_pids": schema.integers("property ids", nonempty=True), "error_alpha": schema.number(-1.0, strict=True),
     "n_modes": schema.integers("numbers of modes", nonempty=True), "samples": schema.integer(1),
     "seed": schema.integer(0), "chunk_size": schema.integer(1),
-    "eigensolver": schema.choice("subspace", "full", "sparse"), "lockstep": schema.integer(1),
+    "eigensolver": schema.choice(*STUDY_EIGENSOLVERS), "lockstep": schema.integer(1),
 }
 
 

@@ -20,10 +20,8 @@ import scipy.sparse.linalg
 
 import jaxfem
 from jaxfem import STIFFNESS_BLOCKS, STRUCTURAL_BLOCKS, Model
-from jaxfem import _sparse
 
-from ._compiled import Compiled
-from ._residuals import Problem, residuals
+from .. import Compiled, Problem, residuals
 
 
 def reduction(r: np.ndarray, columns: np.ndarray, baseline: np.ndarray | None = None,
@@ -95,10 +93,10 @@ def residual_forces(model: Model, lam_e, phi_e, C) -> tuple[dict[int, float], di
     """
     K, M = jaxfem.assemble(model)
     n = model.n_dof
-    pat = _sparse.pattern(tuple(K.indices) + tuple(M.indices), K.n)
+    pat = jaxfem.sparse_pattern(tuple(K.indices) + tuple(M.indices), K.n)
     kd = pat.values(K.blocks, pat.slots[:len(K.blocks)])
     md = pat.values(M.blocks, pat.slots[len(K.blocks):])
-    backend = _sparse.resolve_backend("auto", quiet=True)  # the eigensolver warns where PARDISO is missed
+    backend = jaxfem.resolve_sparse_backend("auto", quiet=True)  # the eigensolver warns where PARDISO is missed
     C = np.asarray(C, dtype=np.float64)
     ns = C.shape[0]
     rotation = model.dofs.labels[:, 1] > 3
@@ -112,7 +110,7 @@ def residual_forces(model: Model, lam_e, phi_e, C) -> tuple[dict[int, float], di
     for mode, (lam, shape) in enumerate(zip(np.asarray(lam_e, dtype=np.float64), shapes)):
         data = kd - lam * md
         try:
-            x = _solved(_sparse.new_factor(pat, backend, data, definite=False), pat.matrix(data), ct)
+            x = _solved(jaxfem.new_sparse_factor(pat, backend, data, definite=False), pat.matrix(data), ct)
         except ValueError as err:
             raise ValueError(f"residual forces, measured mode {mode + 1} (column {mode} of phi_e, "
                              f"{np.sqrt(max(lam, 0.0)) / (2 * np.pi):.6g} Hz): {err}") from None
@@ -160,11 +158,10 @@ def _unit(scores: dict) -> dict:
 
 def _element_dofs(model: Model):
     """(element block, solved-DoF indices per element) for blocks with stiffness."""
-    from jaxfem._assembly import _node_transform
 
     for block in (getattr(model, name) for name in STRUCTURAL_BLOCKS):
         if len(block.ids):
-            yield block, _node_transform(model, block.nodes)[1]
+            yield block, jaxfem.node_transform(model, block.nodes)[1]
 
 
 def group_scores(element_scores: dict[int, float], model: Model) -> dict[int, float]:

@@ -14,35 +14,6 @@ import math
 import sys
 from pathlib import Path
 
-import numpy as np
-
-
-def rms_pct(dev) -> float | None:
-    """RMS (%) of the finite relative deviations (None if there are none)."""
-    dev = np.asarray(dev, float)
-    dev = dev[np.isfinite(dev)]
-    return float(100 * np.sqrt(np.mean(dev**2))) if dev.size else None
-
-
-def json_number(x) -> float | None:
-    """A JSON number: NaN and ±inf become None (null)."""
-    x = float(x)
-    return x if math.isfinite(x) else None
-
-
-def json_safe(x):
-    """NaN/inf → None, NumPy scalars → Python, recursively through dicts, lists and tuples."""
-    if isinstance(x, dict):
-        return {k: json_safe(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [json_safe(v) for v in x]
-    if isinstance(x, np.integer | np.bool_):
-        return x.item()
-    if isinstance(x, float | np.floating):
-        return json_number(x)
-    return x
-
-
 _CSS = """body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}
 h1{margin-bottom:.2em}h2{border-bottom:2px solid #ccc;padding-bottom:.2em;margin-top:1.6em}
 .meta{color:#666}.verdict{background:#fff6d5;border-left:6px solid #e0a800;padding:.8em 1em;margin:1em 0}
@@ -54,7 +25,19 @@ _UNITS = {"_hz": " [Hz]", "_pct": " [%]"}
 _HEADERS = {"mac": "MAC [–]", "comac": "COMAC [–]", "freq_dev_pct": "Δf [%]",
             "rms_freq_dev_pct": "RMS Δf [%]", "mean_mac": "mean MAC [–]",
             "heldout_rms_freq_dev_pct_before": "held-out RMS Δf before [%]",
-            "heldout_rms_freq_dev_pct_after": "held-out RMS Δf after [%]"}
+            "heldout_rms_freq_dev_pct_after": "held-out RMS Δf after [%]",
+            "heldout_rms_freq_dev_pct": "held-out RMS Δf [%]", "heldout_mean_mac": "held-out mean MAC [–]",
+            "chi2_per_row": "χ² per residual row (all, at the stated noise) [–]",
+            "chi2_per_row_freq": "χ² per row, frequencies [–]", "chi2_per_row_shape": "χ² per row, shapes [–]",
+            "heldout_rms_zeta_dev_pct": "held-out RMS ζ deviation [%]", "posterior": "posterior probability [–]",
+            "log_evidence": "ln Bayes factor vs baseline [–]", "log_occam": "ln Occam factor [–]",
+            "f_test_hz": "f test [Hz]", "f_model_hz": "f model [Hz]", "zeta_test": "ζ test [–]",
+            "zeta_baseline": "ζ Rayleigh alone [–]", "zeta_best": "ζ with the best region [–]",
+            "rms_freq_dev_pct_active_before": "RMS Δf active before [%]",
+            "rms_freq_dev_pct_active_after": "RMS Δf active after [%]",
+            "rms_freq_dev_pct_passive_before": "RMS Δf passive (held out) before [%]",
+            "rms_freq_dev_pct_passive_after": "RMS Δf passive (held out) after [%]",
+            "mean_mac_passive_before": "mean MAC passive before [–]", "mean_mac_passive_after": "mean MAC passive after [–]"}
 _MODE_COLUMNS = ["test", "model", "f_test_hz", "f_model_hz", "freq_dev_pct", "mac"]
 
 
@@ -146,65 +129,13 @@ def write_report(diagnosis: dict, figures: dict, path, links: dict | None = None
         if parts:
             out.append(f"<h2>{html.escape(title)}</h2>" + "\n".join(parts))
 
-    meta = [f"{label}: {Path(str(d[key])).name}" for key, label in (("model", "model"), ("test", "test"))
-            if d.get(key)]
-    meta.append(datetime.datetime.now().strftime("%Y-%m-%d %H:%M"))
-    out.append("<h1>jaxfem diagnosis</h1>" + f'<p class="meta">{html.escape(" · ".join(meta))}</p>')
-    if d.get("verdict"):
-        out.append(f'<div class="verdict">{html.escape(str(d["verdict"]))}</div>')
-
-    def id_list(key, text):
-        return f"<p>{html.escape(text)}: {html.escape(_fmt(list(d[key])))}</p>" if d.get(key) else ""
-
-    section("Comparison", [
-        _table(d["paired_modes"], _MODE_COLUMNS) if d.get("paired_modes") else "",
-        id_list("unpaired_test", "Unpaired test modes"), id_list("unpaired_model", "Unpaired model modes"),
-        "<h3>Baseline</h3>" + _scalars(d["baseline"]) if d.get("baseline") else "",
-        *figs_of("mac", "freq_dev")])
-    section("Mode shapes in 3-D", [
-        "<ul>" + "".join(f'<li><a href="{html.escape(href)}">{html.escape(text)}</a></li>'
-                         for text, href in links.items()) + "</ul><p>Test and model shapes of each pair animated "
-        "side by side (interactive, one self-contained page each).</p>" if links else ""])
-
-    sensors = sorted(d.get("sensors") or [], key=lambda s: _num(s.get("comac")))[:10]
-    loc = d.get("localisation") or {}
-    section("Where it fails", [
-        "<h3>Sensors with the lowest COMAC</h3>" + _table(sensors, ["label", "comac"]) if sensors else "",
-        "<h3>Property groups</h3>" + _table(loc["groups"][:10]) if loc.get("groups") else "",
-        "<h3>Nodes</h3>" + _table(loc["nodes"][:10]) if loc.get("nodes") else "",
-        *figs_of("localisation_surface", "localisation_groups", "localisation_nodes")])
-
-    effects = [{**e, "notes": "; ".join(map(str, e.get("plausibility") or []))} for e in d.get("effects") or []]
-    outcome = {"effect": "<p>The most probable effect passes every test (more probable than the baseline, χ² "
-                         "and held-out error in frequencies and shapes lowered beyond noise).</p>",
-               "none_needed": "<p><b>No extra effect is warranted</b>: the baseline explains the data to the "
-                              "stated noise.</p>",
-               "unexplained": "<p><b>No single effect explains the data.</b></p>"}.get(d.get("outcome"), "")
-    section("Candidate effects", [
-        _table(effects, ["rank", "kind", "where", "parameters", "posterior", "log_evidence", "log_occam",
-                         "chi2_per_row", "heldout_rms_freq_dev_pct_before", "heldout_rms_freq_dev_pct_after",
-                         "heldout_mean_mac_after", "score", "delta_aic", "warranted", "notes"]) if effects else "",
-        "<p>posterior: probability among the fitted candidates and the baseline (Laplace evidence, equal "
-        "prior odds); log_evidence: ln Bayes factor against the baseline; log_occam: the price of the "
-        "parameters' freedom; score: % of the cross-validated residual removed; delta_aic: ΔAIC.</p>"
-        if effects else "",
-        outcome, *figs_of("effects")])
-
-    damping = d.get("damping") or {}
-    section("Damping: a local loss factor", [
-        f'<div class="verdict">{html.escape(str(damping["verdict"]))}</div>' if damping else "",
-        "<h3>Per mode</h3>" + _table(damping["modes"], ["test_mode", "f_test_hz", "zeta_test", "zeta_baseline",
-                                                      "zeta_best", "model_mode"]) if damping else "",
-        "<h3>Regions</h3>" + _table(damping["effects"], ["rank", "where", "eta", "eta_sd", "posterior",
-                                                         "log_evidence", "chi2_per_row",
-                                                         "heldout_rms_zeta_dev_pct_before",
-                                                         "heldout_rms_zeta_dev_pct_after", "warranted"])
-        if damping.get("effects") else "",
-        "<p>ζ: viscous damping ratio; zeta_baseline: Rayleigh damping alone (eq. 3.40) fitted; zeta_best: with "
-        "the first-ranked region's loss factor η (modal strain energy); held-out: each mode predicted by a fit "
-        "on the other folds, % of the measured ratio.</p>" if damping else "",
-        *figs_of("damping")])
-
+    out.extend(_heading(d))
+    section("Comparison", [*_comparison(d), *figs_of("mac", "freq_dev")])
+    section("Mode shapes in 3-D", [_shape_links(links)])
+    section("Where it fails", [*_failures(d),
+                               *figs_of("localisation_surface", "localisation_groups", "localisation_nodes")])
+    section("Candidate effects", [*_candidates(d), *figs_of("effects")])
+    section("Damping: a local loss factor", [*_damping(d), *figs_of("damping")])
     after = d.get("after") or {}
     section("After adding the effect", [
         _table(after["paired_modes"], _MODE_COLUMNS) if after.get("paired_modes") else "",
@@ -217,6 +148,83 @@ def write_report(diagnosis: dict, figures: dict, path, links: dict | None = None
                     f"<style>{_CSS}</style></head><body>\n" + "\n".join(out) + "\n</body></html>\n",
                     encoding="utf-8")
     return path
+
+
+def _heading(d: dict) -> list[str]:
+    """The title with the model, test and date, and the verdict."""
+    meta = [f"{label}: {Path(str(d[key])).name}" for key, label in (("model", "model"), ("test", "test"))
+            if d.get(key)]
+    meta.append(datetime.datetime.now().strftime("%Y-%m-%d %H:%M"))
+    out = ["<h1>jaxfem diagnosis</h1>" + f'<p class="meta">{html.escape(" · ".join(meta))}</p>']
+    if d.get("verdict"):
+        out.append(f'<div class="verdict">{html.escape(str(d["verdict"]))}</div>')
+    return out
+
+
+def _id_list(d: dict, key: str, text: str) -> str:
+    """A paragraph listing ``d[key]`` ('' without)."""
+    return f"<p>{html.escape(text)}: {html.escape(_fmt(list(d[key])))}</p>" if d.get(key) else ""
+
+
+def _comparison(d: dict) -> list[str]:
+    """Paired modes, unpaired ones and the baseline."""
+    return [
+        _table(d["paired_modes"], _MODE_COLUMNS) if d.get("paired_modes") else "",
+        _id_list(d, "unpaired_test", "Unpaired test modes"), _id_list(d, "unpaired_model", "Unpaired model modes"),
+        "<h3>Baseline</h3>" + _scalars(d["baseline"]) if d.get("baseline") else ""]
+
+
+def _shape_links(links: dict | None) -> str:
+    """The list of links to the 3-D mode-shape views ('' without)."""
+    return ("<ul>" + "".join(f'<li><a href="{html.escape(href)}">{html.escape(text)}</a></li>'
+                             for text, href in links.items()) + "</ul><p>Test and model shapes of each pair animated "
+            "side by side (interactive, one self-contained page each).</p>" if links else "")
+
+
+def _failures(d: dict) -> list[str]:
+    """The sensors of lowest COMAC and the first property groups and nodes of the localisation."""
+    sensors = sorted(d.get("sensors") or [], key=lambda s: _num(s.get("comac")))[:10]
+    loc = d.get("localisation") or {}
+    return [
+        "<h3>Sensors with the lowest COMAC</h3>" + _table(sensors, ["label", "comac"]) if sensors else "",
+        "<h3>Property groups</h3>" + _table(loc["groups"][:10]) if loc.get("groups") else "",
+        "<h3>Nodes</h3>" + _table(loc["nodes"][:10]) if loc.get("nodes") else ""]
+
+
+def _candidates(d: dict) -> list[str]:
+    """The table of candidate effects, its legend and the outcome."""
+    effects = [{**e, "notes": "; ".join(map(str, e.get("plausibility") or []))} for e in d.get("effects") or []]
+    outcome = {"effect": "<p>The most probable effect passes every test (more probable than the baseline, χ² "
+                         "and held-out error in frequencies and shapes lowered beyond noise).</p>",
+               "none_needed": "<p><b>No extra effect is warranted</b>: the baseline explains the data to the "
+                              "stated noise.</p>",
+               "unexplained": "<p><b>No single effect explains the data.</b></p>"}.get(d.get("outcome"), "")
+    return [
+        _table(effects, ["rank", "kind", "where", "parameters", "posterior", "log_evidence", "log_occam",
+                         "chi2_per_row", "heldout_rms_freq_dev_pct_before", "heldout_rms_freq_dev_pct_after",
+                         "heldout_mean_mac_after", "score", "delta_aic", "warranted", "notes"]) if effects else "",
+        "<p>posterior: probability among the fitted candidates and the baseline (Laplace evidence, equal "
+        "prior odds); log_evidence: ln Bayes factor against the baseline; log_occam: the price of the "
+        "parameters' freedom; score: % of the cross-validated residual removed; delta_aic: ΔAIC.</p>"
+        if effects else "",
+        outcome]
+
+
+def _damping(d: dict) -> list[str]:
+    """The damping verdict, the per-mode and per-region tables and their legend."""
+    damping = d.get("damping") or {}
+    return [
+        f'<div class="verdict">{html.escape(str(damping["verdict"]))}</div>' if damping else "",
+        "<h3>Per mode</h3>" + _table(damping["modes"], ["test_mode", "f_test_hz", "zeta_test", "zeta_baseline",
+                                                      "zeta_best", "model_mode"]) if damping else "",
+        "<h3>Regions</h3>" + _table(damping["effects"], ["rank", "where", "eta", "eta_sd", "posterior",
+                                                         "log_evidence", "chi2_per_row",
+                                                         "heldout_rms_zeta_dev_pct_before",
+                                                         "heldout_rms_zeta_dev_pct_after", "warranted"])
+        if damping.get("effects") else "",
+        "<p>ζ: viscous damping ratio; zeta_baseline: Rayleigh damping alone (eq. 3.40) fitted; zeta_best: with "
+        "the first-ranked region's loss factor η (modal strain energy); held-out: each mode predicted by a fit "
+        "on the other folds, % of the measured ratio.</p>" if damping else ""]
 
 
 def _num(value) -> float:

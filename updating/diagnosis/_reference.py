@@ -22,19 +22,21 @@ import warnings
 import numpy as np
 
 import jaxfem
-from identification import ModalData, observation_matrix
+from identification import MAX_FREQ_DEV, ModalData, observation_matrix, pair_modes
 from jaxfem import Model
 
-from ._correlation import pair_modes
+from .. import n_model_modes
+
+REFERENCE_MAC = 0.8  # two tests of one structure at the same sensors pair more strictly than test and model
 
 
 def relative_to(model: Model, test: ModalData, reference: ModalData, *, n_modes: int | None = None,
-                min_mac: float = 0.8, max_freq_dev: float = 0.3, solver: str = "auto") -> tuple[ModalData, list[dict]]:
+                min_mac: float = REFERENCE_MAC, max_freq_dev: float = MAX_FREQ_DEV, solver: str = "auto") -> tuple[ModalData, list[dict]]:
     """The change from ``reference`` to ``test`` on the model's modes (module docstring).
 
     **Arguments:** the model; the test (e.g. damaged) and the reference (healthy) modes,
-    measured at the same sensors; ``n_modes`` model modes to pair with (default twice the
-    reference's + 10); pairing thresholds (reference ↔ model, and test ↔ reference with
+    measured at the same sensors; ``n_modes`` model modes to pair with (default
+    :func:`updating.n_model_modes`); pairing thresholds (reference ↔ model, and test ↔ reference with
     ``min_mac`` and a tenth of ``max_freq_dev``); the eigensolver (:func:`jaxfem.modes`).
 
     **Returns:** the data (one mode per reference mode paired both ways, in test order)
@@ -44,8 +46,7 @@ def relative_to(model: Model, test: ModalData, reference: ModalData, *, n_modes:
     if list(test.sensors.labels) != list(reference.sensors.labels):
         raise ValueError("the test and the reference must be measured at the same sensors, in the same order "
                          f"({len(test.sensors.labels)} and {len(reference.sensors.labels)} sensors given)")
-    n = n_modes or 2 * len(reference.frequencies_hz) + 10
-    lam, phi = jaxfem.modes(model, min(n, model.n_dof), solver=solver)
+    lam, phi = jaxfem.modes(model, n_model_modes(model, len(reference.frequencies_hz), n_modes), solver=solver)
     f_a = np.asarray(jaxfem.frequencies_hz(lam))
     C, _ = observation_matrix(model, reference.sensors)
     shapes_a = np.asarray(C @ phi)

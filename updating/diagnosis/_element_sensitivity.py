@@ -32,10 +32,9 @@ import scipy.linalg
 import scipy.sparse
 
 import jaxfem
-from jaxfem import Model
-from jaxfem._eager import compiled_when_eager
+from jaxfem import Model, compiled_when_eager
 
-from ._residuals import Problem, evaluate, paired_subspace, rows
+from .. import Problem, evaluate, paired_subspace, rows
 
 CLUSTER_RTOL = 1e-6  # modes closer than this (relative) count as one cluster: no coefficient between them
 
@@ -100,7 +99,7 @@ def _modes(problem: Problem, theta, model: Model):
     """The paired evaluation at θ and all computed modes (λ, Φ: n × q), a solver of
     (K − σM) and σ (on the sparse path from one solve)."""
     K, M = jaxfem.assemble(model)
-    if jaxfem.use_sparse(model, problem.solver):
+    if problem.sparse:
         sol = jaxfem.sparse_modes(K, M, problem.n_model)
         inverse = sol.solver
         return (paired_subspace(K, M, sol, problem), np.asarray(sol.lam), np.asarray(sol.basis),
@@ -165,42 +164,52 @@ def element_jacobian(problem: Problem, theta, kinds=KINDS, modes=None) -> Elemen
     Phi_p = np.vstack([Phi, np.zeros((1, Phi.shape[1]))])  # padding index → 0
     flex_p = np.hstack([flex, np.zeros((ns, 1))])
     columns, ids = {}, {}
-    n = Phi.shape[0]
     for kind in kinds:
-        k_blocks, m_blocks = _blocks(model, kind)
-        k_blocks = [b for b in k_blocks if np.any(b[1])]
-        m_blocks = [b for b in m_blocks if np.any(b[1])]
-        names = [n_ for n_ in _K_ORDER + ("masses",) if n_ in {b[0] for b in k_blocks + m_blocks}]
-        if not names:
-            continue
-        eids = np.concatenate([getattr(model, n_).ids for n_ in names])
-        offset = dict(zip(names, np.cumsum([0] + [len(getattr(model, n_).ids) for n_ in names])[:-1]))
-        D = np.zeros((1 + ns, ne, len(eids)))  # ∂λ_j and ∂(Cφ_j) per element
-
-        def scatter(blocks, scale, j):
-            """(∂K − λ_j ∂M) φ_j of each element as a sparse n × elements matrix."""
-            data, at, col = [], [], []
-            for name, blk, idx in blocks:
-                data.append(scale * np.einsum("eab,eb->ea", blk, Phi_p[idx, j]).ravel())
-                at.append(idx.ravel())
-                col.append(np.repeat(offset[name] + np.arange(len(blk)), idx.shape[1]))
-            if not data:
-                return scipy.sparse.csr_matrix((n + 1, len(eids)))
-            return scipy.sparse.csr_matrix((np.concatenate(data), (np.concatenate(at), np.concatenate(col))),
-                                           shape=(n + 1, len(eids)))
-
-        for col, j in zip(np.flatnonzero(paired), modes):
-            lj = lam[j]
-            coef = np.where(np.abs(lam - lj) > CLUSTER_RTOL * abs(lj), 1.0 / np.where(lam == lj, 1.0, lj - lam), 0.0)
-            coef[j] = 0.0
-            v_m = scatter(m_blocks, -lj, j)
-            v = scatter(k_blocks, 1.0, j) + v_m
-            proj = np.asarray((v.T @ Phi_p).T)  # φ_kᵀ v per mode k and element
-            D[0, col] = proj[j]  # eq. 3.18
-            # eq. 3.23 with eq. 3.28, the static correction, and eq. 3.29: c_j = −½ φ_jᵀ ∂M φ_j
-            D[1:, col] = Cphi @ (coef[:, None] * proj) - np.asarray((v.T @ flex_p.T).T)
-            if m_blocks and lj != 0:
-                D[1:, col] += 0.5 * Cphi[:, [j]] * (np.asarray(v_m.T @ Phi_p[:, j]) / lj)[None, :]
-        columns[kind] = G @ np.concatenate([D[0], D[1:].reshape(ns * ne, -1)])
-        ids[kind] = eids
+        found = _element_derivatives(model, kind, lam, Phi_p, Cphi, flex_p, paired, modes)
+        if found is not None:
+            D, ids[kind] = found
+            columns[kind] = G @ np.concatenate([D[0], D[1:].reshape(ns * ne, -1)])
     return ElementJacobian(r, columns, ids, np.asarray(ev.mac))
+
+
+def _element_derivatives(model: Model, kind: str, lam, Phi_p, Cphi, flex_p, paired, modes):
+    """``(D, element ids)`` of one kind: ∂λ_j and ∂(Cφ_j) of each paired mode j per element
+    (``D``: (1 + ns) × ne × elements), None where the model has no element of the kind.
+    ``Phi_p``, ``flex_p``: the modes and the residual flexibility at the sensors, padded
+    with a zero row (index −1); ``modes``: the model mode of each paired test mode."""
+    k_blocks, m_blocks = _blocks(model, kind)
+    k_blocks = [b for b in k_blocks if np.any(b[1])]
+    m_blocks = [b for b in m_blocks if np.any(b[1])]
+    names = [n_ for n_ in _K_ORDER + ("masses",) if n_ in {b[0] for b in k_blocks + m_blocks}]
+    if not names:
+        return None
+    eids = np.concatenate([getattr(model, n_).ids for n_ in names])
+    offset = dict(zip(names, np.cumsum([0] + [len(getattr(model, n_).ids) for n_ in names])[:-1]))
+    n, ns, ne = Phi_p.shape[0] - 1, Cphi.shape[0], len(paired)
+    D = np.zeros((1 + ns, ne, len(eids)))  # ∂λ_j and ∂(Cφ_j) per element
+
+    def scatter(blocks, scale, j):
+        """(∂K − λ_j ∂M) φ_j of each element as a sparse n × elements matrix."""
+        data, at, col = [], [], []
+        for name, blk, idx in blocks:
+            data.append(scale * np.einsum("eab,eb->ea", blk, Phi_p[idx, j]).ravel())
+            at.append(idx.ravel())
+            col.append(np.repeat(offset[name] + np.arange(len(blk)), idx.shape[1]))
+        if not data:
+            return scipy.sparse.csr_matrix((n + 1, len(eids)))
+        return scipy.sparse.csr_matrix((np.concatenate(data), (np.concatenate(at), np.concatenate(col))),
+                                       shape=(n + 1, len(eids)))
+
+    for col, j in zip(np.flatnonzero(paired), modes):
+        lj = lam[j]
+        coef = np.where(np.abs(lam - lj) > CLUSTER_RTOL * abs(lj), 1.0 / np.where(lam == lj, 1.0, lj - lam), 0.0)
+        coef[j] = 0.0
+        v_m = scatter(m_blocks, -lj, j)
+        v = scatter(k_blocks, 1.0, j) + v_m
+        proj = np.asarray((v.T @ Phi_p).T)  # φ_kᵀ v per mode k and element
+        D[0, col] = proj[j]  # eq. 3.18
+        # eq. 3.23 with eq. 3.28, the static correction, and eq. 3.29: c_j = −½ φ_jᵀ ∂M φ_j
+        D[1:, col] = Cphi @ (coef[:, None] * proj) - np.asarray((v.T @ flex_p.T).T)
+        if m_blocks and lj != 0:
+            D[1:, col] += 0.5 * Cphi[:, [j]] * (np.asarray(v_m.T @ Phi_p[:, j]) / lj)[None, :]
+    return D, eids

@@ -25,8 +25,6 @@ gives the test nodes and trace lines in the model's frame.
 
 from __future__ import annotations
 
-import html
-import json
 import os
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -36,15 +34,13 @@ from jaxtyping import ArrayLike, Float
 
 from jaxfem import Model
 
+from ._shape_traces import _page
+
 DEFORMATION = 0.10  # largest translation of each drawn shape, as a fraction of the structure's extent
 MAX_EDGES = 20_000  # model element edges drawn at most (feature edges first)
 MAX_GRID_MARKERS = 2_000  # model grids drawn as markers up to this many grids
 PHASES = 24  # animation frames per cycle
 FRAME_MS = 60  # time per frame
-
-_DATA_ID = "jaxfem-shape-data"
-_COLOURS = {"test": "#d62728", "model": "#1f77b4", "test0": "#9a9a9a", "model0": "#c4c4c4"}
-
 
 def grid_translations(model: Model, phi: Float[ArrayLike, "ndof m"]) -> Float[np.ndarray, "nnode 3 m"]:
     """Translations of every grid in mode vectors over the solved DoFs.
@@ -216,39 +212,10 @@ def shape_view(
     n_grid = len(node_ids)
     if not deformation > 0:
         raise ValueError(f"deformation must be positive, got {deformation}")
-    if callable(model_shapes):
-        shape_of = model_shapes
-        n_model = None
-    else:
-        array = np.asarray(model_shapes)
-        if array.ndim != 3 or array.shape[:2] != (n_grid, 3):
-            raise ValueError(f"model_shapes has shape {array.shape}; expected ({n_grid}, 3, m) for this model")
-        shape_of, n_model = (lambda i: array[:, :, i]), array.shape[2]
-
-    ids = sorted(int(n) for n in test_nodes)
-    t_xyz = np.array([np.asarray(test_nodes[n], np.float64).reshape(3) for n in ids]).reshape(-1, 3)
-    if not np.isfinite(t_xyz).all():
-        raise ValueError(f"test node {ids[int(np.flatnonzero(~np.isfinite(t_xyz).all(axis=1))[0])]} has "
-                         "coordinates that are not finite")
-    row_of = {n: k for k, n in enumerate(ids)}
-    unknown = sorted(int(n) for n in test_shapes if int(n) not in row_of)
-    if unknown:
-        raise ValueError(f"test shapes at node(s) {unknown} that are not among the test nodes")
-    t_shapes = {int(n): np.asarray(v) for n, v in test_shapes.items()}
-    widths = {v.shape[1] for v in t_shapes.values() if v.ndim == 2 and v.shape[0] == 3}
-    bad = [n for n, v in t_shapes.items() if v.ndim != 2 or v.shape[0] != 3 or np.iscomplexobj(v)
-           or not np.isfinite(v).all()]
-    if bad or len(widths) > 1:
-        raise ValueError("test shapes must be real, finite (3, n_e) arrays of one n_e; node "
-                         f"{(bad or list(t_shapes))[0]} has {t_shapes[(bad or list(t_shapes))[0]].shape}")
-    n_test = widths.pop() if widths else 0
-    bad_lines = [ln for ln in test_lines if int(ln[0]) not in row_of or int(ln[1]) not in row_of]
-    if bad_lines:
-        raise ValueError(f"test trace line {tuple(bad_lines[0])} joins a node that is not among the test nodes")
-    for k, (j, i, *_rest) in enumerate(pairs):
-        if not 0 <= int(j) < n_test or (n_model is not None and not 0 <= int(i) < n_model) or int(i) < 0:
-            raise ValueError(f"pair {k + 1}: test mode {int(j) + 1} or model mode {int(i) + 1} does not exist "
-                             f"({n_test} test modes{'' if n_model is None else f', {n_model} model modes'})")
+    shape_of, n_model = _model_shape_source(model_shapes, n_grid)
+    ids, t_xyz, row_of = _test_node_rows(test_nodes)
+    t_shapes, n_test = _test_shape_arrays(test_shapes, row_of)
+    _check_lines_and_pairs(test_lines, pairs, row_of, n_test, n_model)
 
     edges, n_edges = _model_edges(model, max_edges)
     markers = n_grid <= MAX_GRID_MARKERS
@@ -268,38 +235,9 @@ def shape_view(
     amp = deformation * extent
     digits = int(6 - np.floor(np.log10(extent)))
     margin = 1.1 * amp
+    view_pairs, rows = _view_pairs(pairs, shape_of, n_grid, t_shapes, row_of, len(ids), drawn, amp, digits)
 
-    def scaled(u: np.ndarray, rows=slice(None)) -> list[float]:
-        """u[rows] scaled so that the largest translation of all of u is ``amp``."""
-        peak = float(np.linalg.norm(u, axis=1).max()) if len(u) else 0.0
-        u = u[rows] * (amp / peak) if peak > 0 else np.zeros_like(u[rows])
-        return np.round(u, digits).ravel().tolist()
-
-    rows = []
-    view_pairs = []
-    for k, (j, i, ft, fm, mac) in enumerate(pairs):
-        j, i, ft, fm, mac = int(j), int(i), float(ft), float(fm), float(mac)
-        u_m = np.asarray(shape_of(i))
-        if u_m.shape != (n_grid, 3) or np.iscomplexobj(u_m) or not np.isfinite(u_m).all():
-            raise ValueError(f"model mode {i + 1}: shape {u_m.shape}, expected real, finite ({n_grid}, 3)")
-        u_t = np.zeros((len(ids), 3))
-        for n, v in t_shapes.items():
-            u_t[row_of[n]] = v[:, j]
-        dev = 100.0 * (fm - ft) / ft if ft else float("nan")
-        text = (f"test {j + 1}: {ft:.4g} Hz · model {i + 1}: {fm:.4g} Hz · Δf {dev:+.2f} % · MAC {mac:.3f}")
-        view_pairs.append({"label": f"{k + 1}: {text}", "title": f"pair {k + 1}/{len(pairs)}: {text}",
-                           "test": scaled(u_t), "model": scaled(u_m, drawn)})
-        rows.append((k + 1, j + 1, i + 1, ft, fm, dev, mac))
-
-    shown = f"{min(n_edges, max_edges):,} of {n_edges:,}"
-    explanation = (
-        f"Deflection: each shape scaled to a largest translation of {100 * deformation:g} % of the structure's "
-        f"extent (L = {extent:.4g} m), u(t) = u·sin(ωt). Test in red (nodes; trace lines: "
-        + (f"{len(test_lines)} from UFF dataset 82" if len(test_lines) else "none given (UFF dataset 82)")
-        + f"), model in blue ({shown} element edges"
-        + (f", the first {max_edges:,} by priority: line elements, shell feature edges, an even share of the rest"
-           if n_edges > max_edges else "")
-        + "), undeformed in grey. " + note).strip()
+    explanation = _explanation(deformation, extent, len(test_lines), n_edges, max_edges, note)
     data = {
         "title": title, "phases": PHASES, "frame_ms": FRAME_MS,
         "range": [[float(lo[c] - margin), float(hi[c] + margin)] for c in range(3)],
@@ -314,6 +252,93 @@ def shape_view(
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(_page(title, explanation, data, rows), encoding="utf-8")
     return path
+
+
+def _model_shape_source(model_shapes, n_grid: int) -> tuple[Callable[[int], ArrayLike], int | None]:
+    """The model shape of a mode index, and how many modes there are (None: a function's)."""
+    if callable(model_shapes):
+        return model_shapes, None
+    array = np.asarray(model_shapes)
+    if array.ndim != 3 or array.shape[:2] != (n_grid, 3):
+        raise ValueError(f"model_shapes has shape {array.shape}; expected ({n_grid}, 3, m) for this model")
+    return (lambda i: array[:, :, i]), array.shape[2]
+
+
+def _test_node_rows(test_nodes: Mapping[int, ArrayLike]) -> tuple[list[int], np.ndarray, dict[int, int]]:
+    """The test node ids sorted, their coordinates (n, 3) (finite) and {id: row}."""
+    ids = sorted(int(n) for n in test_nodes)
+    t_xyz = np.array([np.asarray(test_nodes[n], np.float64).reshape(3) for n in ids]).reshape(-1, 3)
+    if not np.isfinite(t_xyz).all():
+        raise ValueError(f"test node {ids[int(np.flatnonzero(~np.isfinite(t_xyz).all(axis=1))[0])]} has "
+                         "coordinates that are not finite")
+    return ids, t_xyz, {n: k for k, n in enumerate(ids)}
+
+
+def _test_shape_arrays(test_shapes: Mapping, row_of: dict[int, int]) -> tuple[dict[int, np.ndarray], int]:
+    """The test shapes as {node id: (3, n_e)} arrays, checked, and n_e (0 without)."""
+    unknown = sorted(int(n) for n in test_shapes if int(n) not in row_of)
+    if unknown:
+        raise ValueError(f"test shapes at node(s) {unknown} that are not among the test nodes")
+    t_shapes = {int(n): np.asarray(v) for n, v in test_shapes.items()}
+    widths = {v.shape[1] for v in t_shapes.values() if v.ndim == 2 and v.shape[0] == 3}
+    bad = [n for n, v in t_shapes.items() if v.ndim != 2 or v.shape[0] != 3 or np.iscomplexobj(v)
+           or not np.isfinite(v).all()]
+    if bad or len(widths) > 1:
+        raise ValueError("test shapes must be real, finite (3, n_e) arrays of one n_e; node "
+                         f"{(bad or list(t_shapes))[0]} has {t_shapes[(bad or list(t_shapes))[0]].shape}")
+    return t_shapes, widths.pop() if widths else 0
+
+
+def _check_lines_and_pairs(test_lines, pairs, row_of: dict[int, int], n_test: int, n_model: int | None) -> None:
+    """``ValueError`` for a trace line to an unknown node or a pair of modes that do not exist."""
+    bad_lines = [ln for ln in test_lines if int(ln[0]) not in row_of or int(ln[1]) not in row_of]
+    if bad_lines:
+        raise ValueError(f"test trace line {tuple(bad_lines[0])} joins a node that is not among the test nodes")
+    for k, (j, i, *_rest) in enumerate(pairs):
+        if not 0 <= int(j) < n_test or (n_model is not None and not 0 <= int(i) < n_model) or int(i) < 0:
+            raise ValueError(f"pair {k + 1}: test mode {int(j) + 1} or model mode {int(i) + 1} does not exist "
+                             f"({n_test} test modes{'' if n_model is None else f', {n_model} model modes'})")
+
+
+def _scaled(u: np.ndarray, amp: float, digits: int, rows=slice(None)) -> list[float]:
+    """u[rows] scaled so that the largest translation of all of u is ``amp``, rounded."""
+    peak = float(np.linalg.norm(u, axis=1).max()) if len(u) else 0.0
+    u = u[rows] * (amp / peak) if peak > 0 else np.zeros_like(u[rows])
+    return np.round(u, digits).ravel().tolist()
+
+
+def _view_pairs(pairs, shape_of, n_grid: int, t_shapes: dict[int, np.ndarray], row_of: dict[int, int],
+                n_nodes: int, drawn: np.ndarray, amp: float, digits: int) -> tuple[list[dict], list[tuple]]:
+    """Per pair, the page's entry (label, title, scaled test and model shapes) and the table row."""
+    rows = []
+    view_pairs = []
+    for k, (j, i, ft, fm, mac) in enumerate(pairs):
+        j, i, ft, fm, mac = int(j), int(i), float(ft), float(fm), float(mac)
+        u_m = np.asarray(shape_of(i))
+        if u_m.shape != (n_grid, 3) or np.iscomplexobj(u_m) or not np.isfinite(u_m).all():
+            raise ValueError(f"model mode {i + 1}: shape {u_m.shape}, expected real, finite ({n_grid}, 3)")
+        u_t = np.zeros((n_nodes, 3))
+        for n, v in t_shapes.items():
+            u_t[row_of[n]] = v[:, j]
+        dev = 100.0 * (fm - ft) / ft if ft else float("nan")
+        text = (f"test {j + 1}: {ft:.4g} Hz · model {i + 1}: {fm:.4g} Hz · Δf {dev:+.2f} % · MAC {mac:.3f}")
+        view_pairs.append({"label": f"{k + 1}: {text}", "title": f"pair {k + 1}/{len(pairs)}: {text}",
+                           "test": _scaled(u_t, amp, digits), "model": _scaled(u_m, amp, digits, drawn)})
+        rows.append((k + 1, j + 1, i + 1, ft, fm, dev, mac))
+    return view_pairs, rows
+
+
+def _explanation(deformation: float, extent: float, n_lines: int, n_edges: int, max_edges: int, note: str) -> str:
+    """The sentence under the title: scale, colours, what is drawn, and ``note``."""
+    shown = f"{min(n_edges, max_edges):,} of {n_edges:,}"
+    return (
+        f"Deflection: each shape scaled to a largest translation of {100 * deformation:g} % of the structure's "
+        f"extent (L = {extent:.4g} m), u(t) = u·sin(ωt). Test in red (nodes; trace lines: "
+        + (f"{n_lines} from UFF dataset 82" if n_lines else "none given (UFF dataset 82)")
+        + f"), model in blue ({shown} element edges"
+        + (f", the first {max_edges:,} by priority: line elements, shell feature edges, an even share of the rest"
+           if n_edges > max_edges else "")
+        + "), undeformed in grey. " + note).strip()
 
 
 def _model_edges(model: Model, max_edges: int) -> tuple[np.ndarray, int]:
@@ -358,152 +383,3 @@ def _unique_edges(edges: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray
         return edges, np.zeros(0, np.int64), np.zeros(0, np.int64)
     uniq, inverse, counts = np.unique(edges, axis=0, return_inverse=True, return_counts=True)
     return uniq, inverse.reshape(-1), counts
-
-
-_CSS = """body{font-family:sans-serif;margin:.6em 1.2em;color:#222}h1{font-size:1.3em;margin:.2em 0}
-.controls{display:flex;flex-wrap:wrap;gap:1em;align-items:center;margin:.4em 0}.controls select{max-width:46em}
-.note{color:#555;font-size:.85em;margin:.3em 0}table{border-collapse:collapse;font-size:.85em;margin:.6em 0}
-th,td{border:1px solid #ccc;padding:.2em .6em}th{background:#f0f0f0}td{text-align:right}"""
-
-# Runs after Plotly.newPlot (plotly's post_script; {plot_id} is replaced by the div's id).
-_SCRIPT = r"""
-var gd = document.getElementById('{plot_id}');
-var D = JSON.parse(document.getElementById('DATA_ID').textContent);
-var P = D.phases, phase = Math.round(P / 4), pair = 0, playing = true, timer = null, syncing = false;
-function lines(part, u, s) {
-  var xyz = part.xyz, seg = part.seg, n = seg.length / 2, out = [[], [], []];
-  for (var k = 0; k < n; k++) {
-    for (var e = 0; e < 2; e++) {
-      var g = 3 * seg[2 * k + e];
-      for (var c = 0; c < 3; c++) out[c].push(xyz[g + c] + (u ? s * u[g + c] : 0));
-    }
-    for (var c2 = 0; c2 < 3; c2++) out[c2].push(null);
-  }
-  return out;
-}
-function labels(part) {
-  var out = [];
-  if (!part.ids) return null;
-  for (var k = 0; k < part.seg.length / 2; k++) {
-    out.push('node ' + part.ids[part.seg[2 * k]], 'node ' + part.ids[part.seg[2 * k + 1]], '');
-  }
-  return out;
-}
-function draw() {
-  var s = Math.sin(2 * Math.PI * phase / P), p = D.pairs[pair];
-  var t = lines(D.test, p ? p.test : null, s), m = lines(D.model, p ? p.model : null, s);
-  document.getElementById('jaxfem-phase').value = phase;
-  return Plotly.restyle(gd, {x: [t[0], m[0]], y: [t[1], m[1]], z: [t[2], m[2]]}, [1, 3]);
-}
-function tick() {
-  timer = null;
-  if (!playing) return;
-  phase = (phase + 1) % P;
-  draw().then(function () { if (playing && timer === null) timer = setTimeout(tick, D.frame_ms); });
-}
-function play(on) {
-  playing = on;
-  document.getElementById('jaxfem-play').textContent = on ? 'pause' : 'play';
-  if (on && timer === null) timer = setTimeout(tick, D.frame_ms);
-}
-function choose(k) {
-  pair = k;
-  document.getElementById('jaxfem-pair').value = String(k);
-  var p = D.pairs[k];
-  return Plotly.relayout(gd, {'title.text': p ? p.title : D.title + ': no paired modes'}).then(draw);
-}
-function view(how) {
-  var overlay = how === 'overlay';
-  document.getElementById('jaxfem-view').value = how;
-  return Plotly.restyle(gd, {scene: overlay ? 'scene' : 'scene2'}, [2, 3]).then(function () {
-    return Plotly.relayout(gd, {'scene.domain.x': overlay ? [0, 1] : [0, 0.5],
-                                'annotations[0].text': overlay ? 'test (red) and model (blue)' : 'test',
-                                'annotations[0].x': overlay ? 0.5 : 0.25, 'annotations[1].visible': !overlay});
-  });
-}
-var t0 = lines(D.test, null, 0), m0 = lines(D.model, null, 0);
-var tl = labels(D.test), ml = labels(D.model);
-Plotly.restyle(gd, {x: [t0[0], t0[0], m0[0], m0[0]], y: [t0[1], t0[1], m0[1], m0[1]],
-                    z: [t0[2], t0[2], m0[2], m0[2]], text: [tl, tl, ml, ml]}, [0, 1, 2, 3]).then(function () {
-  var opts = {};
-  location.hash.replace(/^#/, '').split('&').forEach(function (kv) {
-    var i = kv.indexOf('='); if (i > 0) opts[kv.slice(0, i)] = decodeURIComponent(kv.slice(i + 1));
-  });
-  if (opts.phase !== undefined) { phase = ((parseInt(opts.phase, 10) % P) + P) % P; playing = false; }
-  var k = Math.min(Math.max(parseInt(opts.pair || '1', 10) - 1, 0), Math.max(D.pairs.length - 1, 0));
-  return view(opts.view === 'overlay' ? 'overlay' : 'side').then(function () { return choose(k); });
-}).then(function () {
-  play(playing);
-  document.getElementById('jaxfem-pair').addEventListener('change', function (e) {
-    choose(parseInt(e.target.value, 10));
-  });
-  document.getElementById('jaxfem-play').addEventListener('click', function () { play(!playing); });
-  document.getElementById('jaxfem-phase').addEventListener('input', function (e) {
-    play(false); phase = parseInt(e.target.value, 10); draw();
-  });
-  document.getElementById('jaxfem-view').addEventListener('change', function (e) { view(e.target.value); });
-  gd.on('plotly_relayout', function (ev) {  // one camera for both scenes
-    if (syncing) return;
-    var cam = ev['scene.camera'] ? ['scene2.camera', ev['scene.camera']]
-            : ev['scene2.camera'] ? ['scene.camera', ev['scene2.camera']] : null;
-    if (!cam) return;
-    syncing = true;
-    var upd = {}; upd[cam[0]] = cam[1];
-    Plotly.relayout(gd, upd).then(function () { syncing = false; }, function () { syncing = false; });
-  });
-});
-""".replace("DATA_ID", _DATA_ID)
-
-
-def _page(title: str, note: str, data: dict, rows: list[tuple]) -> str:
-    """The HTML: controls, the plotly figure (JavaScript embedded) and the pair table."""
-    import plotly.graph_objects as go
-    import plotly.io as pio
-
-    c = _COLOURS
-    axis = [{"title": {"text": f"{a} [m]"}, "range": r, "autorange": False} for a, r in zip("xyz", data["range"])]
-    sides = np.array([r[1] - r[0] for r in data["range"]])
-    aspect = dict(zip("xyz", (sides / sides.max()).tolist()))
-    scene = {"xaxis": axis[0], "yaxis": axis[1], "zaxis": axis[2], "aspectmode": "manual", "aspectratio": aspect}
-    model_mode = "lines+markers" if data["model"]["markers"] else "lines"
-    hover = "%{text}<extra></extra>"
-    traces = [
-        go.Scatter3d(name="test, undeformed", mode="lines+markers", scene="scene",
-                     line={"color": c["test0"], "width": 2}, marker={"color": c["test0"], "size": 2},
-                     hovertemplate=hover),
-        go.Scatter3d(name="test", mode="lines+markers", scene="scene", line={"color": c["test"], "width": 5},
-                     marker={"color": c["test"], "size": 4}, hovertemplate=hover),
-        go.Scatter3d(name="model, undeformed", mode="lines", scene="scene2", line={"color": c["model0"], "width": 1},
-                     hoverinfo="skip"),
-        go.Scatter3d(name="model", mode=model_mode, scene="scene2", line={"color": c["model"], "width": 3},
-                     marker={"color": c["model"], "size": 2},
-                     **({"hovertemplate": hover} if data["model"]["markers"] else {"hoverinfo": "skip"})),
-    ]
-    label = {"xref": "paper", "yref": "paper", "y": 1.0, "showarrow": False, "font": {"size": 14}}
-    layout = go.Layout(
-        title={"text": data["title"]}, uirevision="keep", showlegend=True,
-        legend={"orientation": "h", "y": -0.02}, margin={"l": 0, "r": 0, "t": 50, "b": 30},
-        scene={**scene, "domain": {"x": [0.0, 0.5], "y": [0.0, 0.95]}},
-        scene2={**scene, "domain": {"x": [0.5, 1.0], "y": [0.0, 0.95]}},
-        annotations=[{**label, "x": 0.25, "text": "test"}, {**label, "x": 0.75, "text": "model"}],
-    )
-    figure = pio.to_html(go.Figure(traces, layout), include_plotlyjs=True, full_html=False, div_id="jaxfem-shapes",
-                         post_script=_SCRIPT, default_height="76vh", config={"displaylogo": False, "responsive": True})
-    options = "".join(f'<option value="{k}">{html.escape(p["label"])}</option>' for k, p in enumerate(data["pairs"]))
-    head = "".join(f"<th>{h}</th>" for h in ("pair", "test", "model", "f_test [Hz]", "f_model [Hz]", "Δf [%]", "MAC"))
-    body = "".join(f"<tr><td>{k}</td><td>{j}</td><td>{i}</td><td>{ft:.4f}</td><td>{fm:.4f}</td><td>{d:+.2f}</td>"
-                   f"<td>{m:.3f}</td></tr>" for k, j, i, ft, fm, d, m in rows)
-    payload = json.dumps(data, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
-    return (
-        "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\">"
-        f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>\n"
-        f"<h1>{html.escape(title)}</h1>\n<div class=\"controls\">"
-        f"<label>pair <select id=\"jaxfem-pair\">{options}</select></label>"
-        "<button id=\"jaxfem-play\" type=\"button\">pause</button>"
-        f"<label>phase <input id=\"jaxfem-phase\" type=\"range\" min=\"0\" max=\"{PHASES - 1}\" value=\"0\"></label>"
-        "<label>view <select id=\"jaxfem-view\"><option value=\"side\">side by side</option>"
-        "<option value=\"overlay\">overlaid</option></select></label></div>\n"
-        f"<p class=\"note\">{html.escape(note)}</p>\n"
-        f"<script type=\"application/json\" id=\"{_DATA_ID}\">{payload}</script>\n{figure}\n"
-        f"<table><tr>{head}</tr>{body}</table>\n</body></html>\n"
-    )

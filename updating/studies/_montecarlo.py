@@ -42,13 +42,32 @@ import jaxfem
 from identification import Sensors
 from jaxfem.io import read_bdf
 
-from ._compiled import Compiled
-from ._eigensolvers import LOCKSTEP, AbstractEigensolver, Direct, Refined, Subspace
-from ._engine import Settings, run
-from ._residuals import Problem
-from ._simulation import Noise, perturb, simulate_test
-from ._solve import build_problem
-from ._study import CATEGORIES, TABLE_4_6, TABLE_4_7, MonteCarloResult, Study, default_study, tree_parameters
+from .. import (
+    LOCKSTEP,
+    AbstractEigensolver,
+    Compiled,
+    Direct,
+    Noise,
+    Problem,
+    Progress,
+    ProgressFn,
+    Refined,
+    Settings,
+    Subspace,
+    build_problem,
+    perturb,
+    run,
+    simulate_test,
+)
+from ._study import (
+    CATEGORIES,
+    TABLE_4_6,
+    TABLE_4_7,
+    MonteCarloResult,
+    Study,
+    default_study,
+    tree_parameters,
+)
 
 __all__ = ["CATEGORIES", "TABLE_4_6", "TABLE_4_7", "MonteCarloResult", "Study", "default_study", "tree_parameters",
            "Runner", "montecarlo"]
@@ -59,7 +78,7 @@ __all__ = ["CATEGORIES", "TABLE_4_6", "TABLE_4_7", "MonteCarloResult", "Study", 
 
 @dataclasses.dataclass(frozen=True)
 class _Kind:
-    """How a group's samples are solved: ``subspace`` or ``full`` eigensolves, the
+    """How a group's samples are solved: ``subspace`` or ``dense`` (refined) eigensolves, the
     engine's settings, the shift σ and the samples per vmap batch on each device."""
 
     eigensolver: str
@@ -68,7 +87,7 @@ class _Kind:
     lockstep: int
 
     def solver(self, start: _Start) -> AbstractEigensolver:
-        if self.eigensolver == "full":
+        if self.eigensolver == "dense":
             return Refined(self.shift)
         if self.eigensolver == "sparse":
             return Direct()
@@ -108,7 +127,7 @@ def _update_one(lam_e, phi_e, valid, problem: Problem, start: _Start, kind: _Kin
 def _measure(key, category, magnitude, lam0, phi0):
     """One sample's measured data: the Table 4.7 error of one category (index in
     ``CATEGORIES``) and magnitude on (λ0, φ0) (:func:`updating._simulation.perturb`)."""
-    noise = Noise(**{name: jnp.where(category == i, magnitude, 0.0) for i, name in enumerate(CATEGORIES)})
+    noise = Noise.table_4_7(**{name: jnp.where(category == i, magnitude, 0.0) for i, name in enumerate(CATEGORIES)})
     return perturb(key, noise, lam0, phi0)
 
 
@@ -129,7 +148,7 @@ class _Group:
         rigid = float(lam0[0]) < 1e-6 * float(lam0[n_model - 1])
         shift = -0.01 * float(lam0[n_model - 1]) if rigid else 0.0
         self.kinds = {kind: _Kind(kind, Settings.from_options(opts), shift, study.lockstep)
-                      for kind in (("sparse",) if sparse else ("subspace", "full"))}
+                      for kind in (("sparse",) if sparse else ("subspace", "dense"))}
         # Where every update starts: the initial model, and for the noisy samples the
         # error-free update (:meth:`sample_start`); the sparse solver needs no preconditioner.
         inverse = jnp.zeros((0, 0)) if sparse else jaxfem.shifted_inverse(*jaxfem.assemble(initial), shift=shift)
@@ -253,7 +272,7 @@ class Runner:
         out = g.update(f, phi, self.study.eigensolver, start)
         redo = ~out.solved
         if redo.any():
-            full = g.update(f[redo], phi[redo], "full", start)
+            full = g.update(f[redo], phi[redo], "dense", start)
             out = jax.tree.map(lambda a, b: _put(a, redo, b), out, full)
         return _record(out, np.asarray(f), redo)
 
@@ -276,27 +295,44 @@ def _record(out: _Outcome, f_e: np.ndarray, fallback: np.ndarray) -> dict:
             "fallback": np.asarray(fallback, bool), "refreshes": np.asarray(out.refreshes)}
 
 
-Progress = Callable[[dict], None]
+def chunk_progress(record: dict) -> Progress:
+    """A study's chunk record (chunk, chunks, n_modes, done, total, rate, seconds_left,
+    failed, fallbacks; ``retries`` on Ray) as a :class:`updating.Progress`."""
+    r = record
+    retries = f", {r['retries']} retried" if "retries" in r else ""
+    return Progress(f"chunk {r['chunk']}/{r['chunks']} (n = {r['n_modes']}): {r['done']}/{r['total']} samples, "
+                    f"{r['rate']:.3g} samples/s, ETA {duration(r['seconds_left'])}, {r['failed']} failed, "
+                    f"{r['fallbacks']} fallbacks{retries}", r["done"], r["total"], record)
 
 
-def montecarlo(study: Study, *, out: str | Path | None = None, progress: Progress | None = None,
+def duration(seconds: float) -> str:
+    """Seconds as a person reads them ("3 min 05 s"; "–" if not finite)."""
+    if not np.isfinite(seconds):
+        return "–"
+    minutes, s = divmod(round(seconds), 60)
+    hours, minutes = divmod(minutes, 60)
+    return f"{hours} h {minutes:02d} min" if hours else f"{minutes} min {s:02d} s" if minutes else f"{s} s"
+
+
+def montecarlo(study: Study, *, out: str | Path | None = None, progress: ProgressFn | None = None,
                runner: Runner | None = None) -> MonteCarloResult:
     """Run a study in this process (samples sharded over all JAX devices).
 
     **Arguments:** the :class:`Study`; ``out``: a directory where every finished chunk is
     written at once (``chunks/*.npz``) and from which an interrupted run resumes;
-    ``progress``: called after each chunk with a dict (chunk, chunks, samples done/total,
-    samples per second, seconds left, failures, fallbacks).
+    ``progress``: called after each chunk (:func:`chunk_progress`: samples done of the
+    total, its ``detail`` the chunk record: samples per second, seconds left, failures,
+    fallbacks).
 
     **Returns:** :class:`MonteCarloResult`.
     """
     runner = runner or Runner(study)
-    store = _Store(out, study) if out is not None else None
-    return _collect(study, runner, store, progress,
-                    lambda chunks: ((c, runner.chunk(*c)) for c in chunks))
+    store = ChunkStore(out, study) if out is not None else None
+    report = progress and (lambda record: progress(chunk_progress(record)))
+    return _collect(study, runner, store, report, lambda chunks: ((c, runner.chunk(*c)) for c in chunks))
 
 
-class _Store:
+class ChunkStore:
     """Finished chunks on disk: ``<out>/study.json`` and ``<out>/chunks/n<n>_<start>.npz``."""
 
     def __init__(self, out, study: Study):
@@ -328,7 +364,7 @@ class _Store:
         tmp.replace(self.path(chunk))  # atomic: a killed run never leaves half a chunk
 
 
-def _collect(study: Study, runner: Runner, store: _Store | None, progress: Progress | None,
+def _collect(study: Study, runner: Runner, store: ChunkStore | None, progress: Callable[[dict], None] | None,
              execute: Callable) -> MonteCarloResult:
     start_time = time.perf_counter()
     chunks = study.chunks()

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._study import CATEGORIES, MonteCarloResult
+from ..studies import CATEGORIES, MonteCarloResult
 from ._plots import _figure, _save
 
 # x-axis label per category: what the magnitude is a percentage of (Table 4.7).

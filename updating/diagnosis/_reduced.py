@@ -47,11 +47,9 @@ import scipy.sparse
 import jaxfem
 from jaxfem import ELEMENT_BLOCKS
 
-from ._compiled import Compiled
-from ._eigensolvers import Reduced
+from .. import Compiled, Problem, Reduced, pair
 from ._element_sensitivity import _modes
-from ._evidence import EXTENSION_PARAMS, with_extension
-from ._residuals import Problem, pair
+from ._fit import EXTENSION_PARAMS, with_extension
 
 ATTACH_MAX = 400  # DoFs a candidate may touch for attachment columns; more: first-order columns
 WIDTHS = (96, 2.0, 32)  # a basis is padded to the next width of 96, then ×2 (one compiled fit per width)

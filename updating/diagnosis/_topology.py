@@ -10,9 +10,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxfem import STIFFNESS_BLOCKS, STRUCTURAL_BLOCKS, Model
-from jaxfem._eager import compiled_when_eager
-from identification._patches import shell_centres
+from identification import shell_centres
+from jaxfem import STIFFNESS_BLOCKS, STRUCTURAL_BLOCKS, Model, compiled_when_eager
 from jaxfem.elements import laminates, shell_mass, shell_stiffness
 
 

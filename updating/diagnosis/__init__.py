@@ -1,0 +1,44 @@
+"""Diagnosis: where the model fails and which physical effect is missing — the effect
+library, candidates, evidence, reduced bases, topology, localisation and damping."""
+
+from ._abstract_effect import AbstractEffect as AbstractEffect
+from ._damping import DampingDiagnosis as DampingDiagnosis
+from ._damping_result import DampingBaseline as DampingBaseline
+from ._damping_result import DampingChecks as DampingChecks
+from ._damping_result import DampingMode as DampingMode
+from ._damping_result import DampingRegion as DampingRegion
+from ._damping import diagnose_damping as diagnose_damping
+from ._demo import HIDDEN as HIDDEN
+from ._demo import PARAMETERS as PARAMETERS
+from ._demo import demo_case as demo_case
+from ._confirm import Confirmation as Confirmation
+from ._confirm import ModeChange as ModeChange
+from ._confirm import add_effect as add_effect
+from ._confirm import start_values as start_values
+from ._diagnose import diagnose as diagnose
+from ._diagnosis import Diagnosis as Diagnosis
+from ._diagnosis import Localisation as Localisation
+from ._evidence import CandidateResult as CandidateResult
+from ._evidence import Checks as Checks
+from ._fit import Fit as Fit
+from ._fit import HeldOut as HeldOut
+from ._options import DiagnoseOptions as DiagnoseOptions
+from ._verdict import Baseline as Baseline
+from ._effects import AddedMass as AddedMass
+from ._effects import BoundarySpring as BoundarySpring
+from ._effects import Delamination as Delamination
+from ._effects import DistributedMass as DistributedMass
+from ._effects import Effect as Effect
+from ._effects import FrequencyDependentStiffness as FrequencyDependentStiffness
+from ._effects import GroupMass as GroupMass
+from ._effects import GroupStiffness as GroupStiffness
+from ._effects import Joint as Joint
+from ._effects import LocalDamping as LocalDamping
+from ._effects import PatchStiffness as PatchStiffness
+from ._effects import Payload as Payload
+from ._effects import at_reference as at_reference
+from ._effects import effect_parameters as effect_parameters
+from ._effects import parse_effect as parse_effect
+from ._localisation import reduction as reduction
+from ._localisation import residual_forces as residual_forces
+from ._reference import relative_to as relative_to

@@ -1,0 +1,135 @@
+"""Add an effect to the model and update it with the engineer's parameters, holding passive
+modes out: the error falling, on modes not used in the fit (thesis §4.2.4.2)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import jax.numpy as jnp
+import numpy as np
+
+import jaxfem
+from identification import ModalData, Pairing, pair_modes, rms_pct
+from jaxfem import Model
+
+from .. import (
+    Noise,
+    Options,
+    ParameterSet,
+    ProgressFn,
+    UpdateResult,
+    build_problem,
+    evaluate,
+    json_number,
+    json_safe,
+    update,
+)
+from ._abstract_effect import AbstractEffect
+from ._fit import Fits, scan_start
+from ._options import NOISE, DiagnoseOptions
+
+
+@dataclass(frozen=True)
+class ModeChange:
+    """One test mode before and after the update with the effect: Δf [%] and MAC (None
+    where unpaired), its role in the fit ("active" or "passive")."""
+
+    test: int
+    role: str
+    f_test_hz: float
+    freq_dev_pct_before: float | None
+    freq_dev_pct_after: float | None
+    mac_before: float | None
+    mac_after: float | None
+
+
+@dataclass(frozen=True)
+class Confirmation:
+    """The update without and with an effect, on the same active/passive split: the effect
+    at its updated values, the baseline's pairing, the update, per-mode changes, RMS Δf [%]
+    over active and passive modes, mean passive MAC, and the modes grown ``worse`` beyond
+    2σ of the frequency noise."""
+
+    effect: AbstractEffect
+    before: Pairing
+    after: UpdateResult
+    passive: np.ndarray  # bool per test mode
+    modes: tuple[ModeChange, ...]
+    rms_active_before: float | None
+    rms_active_after: float | None
+    rms_passive_before: float | None
+    rms_passive_after: float | None
+    mean_mac_passive_before: float | None
+    mean_mac_passive_after: float | None
+    worse: tuple[ModeChange, ...]
+
+    def to_json(self) -> dict:
+        """JSON-ready (NaN and inf as null)."""
+        a = self.after
+        return json_safe({
+            "effect": self.effect.to_json(),
+            "parameters": [{"name": n, "alpha": float(x)} for n, x in zip(a.names, a.alpha)],
+            "converged": bool(a.converged), "iterations": int(a.iterations), "seconds": float(a.seconds),
+            "passive_modes": [int(j) + 1 for j in np.flatnonzero(self.passive)],
+            "paired_modes": [vars(m) for m in self.modes],
+            "rms_freq_dev_pct_active_before": self.rms_active_before, "rms_freq_dev_pct_active_after": self.rms_active_after,
+            "rms_freq_dev_pct_passive_before": self.rms_passive_before,
+            "rms_freq_dev_pct_passive_after": self.rms_passive_after,
+            "mean_mac_passive_before": self.mean_mac_passive_before,
+            "mean_mac_passive_after": self.mean_mac_passive_after,
+            "history": [h.to_json(a.names, self.passive) for h in a.history],
+            "worse": [vars(m) for m in self.worse],
+        })
+
+
+def add_effect(model: Model, test: ModalData, effect: AbstractEffect, parameters: ParameterSet | None = None, *,
+               passive_modes: tuple[int, ...] | None = None,
+               progress: ProgressFn | None = None, noise: Noise = NOISE) -> Confirmation:
+    """Add ``effect`` and update it with the engineer's parameters, holding
+    ``passive_modes`` out of the fit (default: every fourth test mode from the third);
+    compare with the update without it. The effect starts from its ``values`` (e.g. as
+    fitted by :func:`diagnose`) or, without values, from :func:`start_values`. Its
+    parameters (``effect.parameters``) are updated with the engineer's and the fitted
+    log-factors give its final values (``effect.updated``). ``worse``: the modes whose
+    |Δf| grew by more than 2σ of the stated frequency noise (``noise.frequency``)."""
+    ne = len(test.frequencies_hz)
+    passive = tuple(passive_modes) if passive_modes is not None else tuple(i for i in range(1, ne + 1) if i % 4 == 3)
+    base = tuple(parameters.parameters) if parameters else ()
+    opts = replace(parameters.options if parameters else Options(), active_modes=None, passive_modes=passive)
+    if base:
+        before = update(model, test, ParameterSet(base, opts)).after
+    else:
+        problem = build_problem(model, test, ParameterSet((), opts))
+        ev = evaluate(jnp.zeros(0), problem)
+        before = pair_modes(np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model),
+                            np.asarray(test.frequencies_hz), np.asarray(problem.phi_e),
+                            min_mac=problem.min_mac, max_freq_dev=problem.max_freq_dev)
+    start = effect if effect.values else start_values(model, test, effect, opts)
+    extended = start.apply(model)
+    eparams = start.parameters(model, extended)
+    after = update(extended, test, ParameterSet(base + eparams, opts), progress=progress)
+    final = start.updated(np.array([after.theta[after.names.index(p.name)] for p in eparams]))
+    is_passive = np.isin(np.arange(1, ne + 1), passive)
+    (d0, m0), (d1, m1) = before.per_test(), after.after.per_test()
+    f_e = np.asarray(test.frequencies_hz)
+    modes = tuple(ModeChange(j + 1, "passive" if is_passive[j] else "active", float(f_e[j]), json_number(d0[j]),
+                             json_number(d1[j]), json_number(m0[j]), json_number(m1[j])) for j in range(ne))
+    grew = np.abs(d1) - np.abs(d0) > 2 * 100 * noise.frequency  # NaN (unpaired before or after): not compared
+    rms = lambda d, sel: rms_pct(d[sel] / 100)  # noqa: E731
+    mean = lambda m: json_number(np.nanmean(m[is_passive])) if is_passive.any() else None  # noqa: E731
+    return Confirmation(final, before, after, is_passive, modes, rms(d0, ~is_passive), rms(d1, ~is_passive),
+                        rms(d0, is_passive), rms(d1, is_passive), mean(m0), mean(m1),
+                        tuple(m for m, g in zip(modes, grew) if g))
+
+
+def start_values(model: Model, test: ModalData, effect: AbstractEffect, opts: Options | None = None) -> AbstractEffect:
+    """Starting values for updating an effect: ``effect.at_reference``, moved to the best
+    point of the coarse grid of log-factors ``effect.scan`` (a joint, support or added
+    mass scaled, a frequency law's factor and coefficient changed; None: no scan)."""
+    start = effect.at_reference(model, test.frequencies_hz)
+    if start.scan is None:
+        return start
+    extended = start.apply(model)
+    problem = build_problem(extended, test, ParameterSet((), replace(opts or Options(), passive_modes=())))
+    return start.updated(scan_start(Fits(DiagnoseOptions().settings), problem, start.extension(model, extended),
+                                    np.zeros(0), start.scan))

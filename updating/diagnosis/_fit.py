@@ -1,0 +1,180 @@
+"""A candidate's fits: the engine's Levenberg–Marquardt loop (:mod:`updating._engine`) on
+all test modes and on each fold of a k-fold cross-validation (the thesis' active/passive
+idea made systematic, §4.2.4.2). The candidates of one diagnosis share one compiled
+solver: their masks (:class:`updating.Extension`) and the fold's mask are traced arguments.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import (
+    AbstractEigensolver,
+    Compiled,
+    Direct,
+    Extension,
+    Problem,
+    Settings,
+    paired_freq_dev,
+    rows,
+    run,
+)
+from ._effects import SCAN
+
+EXTENSION_PARAMS = 2  # the most parameters of one extension (a log-factor and a second one)
+REFINE = (-1.0, -0.5, 0.5, 1.0)  # log-factor steps about the best point of a one-factor scan
+
+
+@dataclass(frozen=True)
+class Fit:
+    """One fit on all test modes: θ, cost Σ row² (frequency + shape parts), Δf (fraction)
+    and MAC per test mode (NaN where unpaired), the Jacobian of the residual rows (None
+    and ``error`` set where a trial step made the model non-finite; cost inf)."""
+
+    theta: np.ndarray
+    cost: float
+    cost_freq: float
+    cost_shape: float
+    freq_dev: np.ndarray
+    mac: np.ndarray
+    jac: np.ndarray | None
+    error: str | None = None
+
+
+@dataclass(frozen=True)
+class HeldOut:
+    """k-fold cross-validation of a fit: summed held-out costs (frequency, shape) and each
+    test mode's Δf (fraction) and MAC when it was held out (NaN where unpaired)."""
+
+    freq: float
+    shape: float
+    freq_dev: np.ndarray
+    mac: np.ndarray
+
+
+def _cost_parts(theta, problem: Problem, mask, ev):
+    """Frequency and shape cost (Σ row²) of the test modes in ``mask`` at ``ev``; an
+    unpaired mode costs the largest frequency deviation allowed and a whole shape."""
+    eps = rows(theta, replace(problem, active=mask), ev)
+    unpaired = mask & ~ev.paired
+    freq = jnp.sum(eps["eigenvalue"] ** 2) + jnp.sum(jnp.where(unpaired, (problem.lam_weight * problem.max_freq_dev) ** 2, 0.0))
+    return freq, jnp.sum(eps["eigenvector"] ** 2) + jnp.sum(jnp.where(unpaired, 1.0, 0.0))
+
+
+def _solve_one(theta0, problem: Problem, settings: Settings, skip, solver: AbstractEigensolver):
+    """One fit by the engine (``skip``: none, evaluate at θ₀) with ``solver``; at its θ the
+    fitted and held-out costs (frequency, shape), the paired eigenvalues and MAC, and the
+    Jacobian of the residual rows."""
+    state = run(theta0, problem, solver, jnp.zeros(0), settings, skip, evaluate_skipped=True)
+    ev, jac = state.evaluation, state.jacobian
+    fit, held = (_cost_parts(state.theta, problem, mask, ev) for mask in (problem.active, ~problem.active))
+    return state.theta, fit, held, ev.lam_a, ev.paired, ev.mac, jac[:-state.theta.shape[0]]
+
+
+class Fits:
+    """The compiled fit of one diagnosis (freed with it, see :mod:`._compiled`); a cost
+    is the fit without a step (one compiled function, not two). ``solver``: the problem's
+    own eigensolver (:class:`Direct`) or a candidate's reduced one."""
+
+    def __init__(self, settings: Settings):
+        self._solve, self.settings = Compiled(_solve_one), settings
+
+    def solve(self, theta0, problem: Problem, solver: AbstractEigensolver = Direct(), skip: bool = False):
+        """θ₀ padded with inert zeros to the engineer's parameters and :data:`EXTENSION_PARAMS`:
+        one compiled fit for extensions of one parameter and of two (each compiled fit took
+        14–24 s at 33,000 DoFs). An inert entry changes no model; its Jacobian column is
+        its regularisation row alone, so its step is zero and θ, costs and Jacobian are
+        those of the unpadded fit (they are returned so)."""
+        theta0 = jnp.asarray(theta0)
+        n = theta0.shape[0]
+        width = max(n, len(problem.parameterisation.parameters) + EXTENSION_PARAMS)
+        out = self._solve(jnp.pad(theta0, (0, width - n)), problem, self.settings, jnp.asarray(skip), solver)
+        return (out[0][:n], *out[1:-1], out[-1][:, :n])
+
+    def cost(self, theta, problem: Problem, solver: AbstractEigensolver = Direct()) -> float:
+        return float(sum(self.solve(theta, problem, solver, skip=True)[1]))
+
+
+def with_extension(problem: Problem, ext: Extension, mask=None) -> Problem:
+    """``problem`` with a candidate's masks (and a fold's mask of fitted modes)."""
+    if mask is None:
+        return eqx.tree_at(lambda q: q.extension, problem, ext, is_leaf=lambda x: x is None)
+    return eqx.tree_at(lambda q: (q.extension, q.active), problem, (ext, jnp.asarray(mask)),
+                       is_leaf=lambda x: x is None)
+
+
+def scan_costs(fits: Fits, problem: Problem, ext: Extension, theta_b: np.ndarray, grid=SCAN,
+               solver: AbstractEigensolver = Direct()) -> np.ndarray:
+    """Cost at each point of a coarse grid of the effect's log-factors."""
+    p = with_extension(problem, ext, np.ones(problem.lam_e.shape[0], bool))
+    return np.array([fits.cost(np.append(theta_b, t), p, solver) for t in grid])
+
+
+def scan_start(fits: Fits, problem: Problem, ext: Extension, theta_b: np.ndarray, grid=SCAN,
+               solver: AbstractEigensolver = Direct()) -> np.ndarray:
+    """Best starting θ of an effect on a coarse grid: a fit from the reference alone can
+    stall where modes swap partners on the way (a much softer joint, a heavy added mass,
+    a strong frequency law). The grid's first factor is then refined about its best point
+    (:data:`REFINE`): a heavy mass brings its own mode into the band, and the valley where
+    every mode pairs can be narrower than the grid's steps."""
+    costs = list(scan_costs(fits, problem, ext, theta_b, grid, solver))
+    best = np.asarray(grid[int(np.argmin(costs))], float)
+    step = np.eye(best.size)[0].reshape(best.shape)
+    grid = list(grid) + [best + d * step for d in REFINE]
+    costs += list(scan_costs(fits, problem, ext, theta_b, grid[len(costs):], solver))
+    return np.atleast_1d(np.asarray(grid[int(np.argmin(costs))], float))
+
+
+def candidate_fit(fits: Fits, problem: Problem, ext: Extension, theta_b: np.ndarray, scan, theta0,
+                  solver: AbstractEigensolver = Direct()) -> tuple[np.ndarray, Fit]:
+    """A shortlisted candidate's start (the best point of its ``scan`` grid, or ``theta0``
+    without one) and its fit on all modes: ``(θ₀, fit)``."""
+    if scan is not None:
+        theta0 = scan_start(fits, problem, ext, theta_b, scan, solver)
+    return theta0, fit(fits, problem, ext, np.concatenate([theta_b, theta0]), solver)
+
+
+def fold_masks(n: int, folds: int) -> list[np.ndarray]:
+    """All modes, then one mask per fold (mode i held out in fold i mod k)."""
+    ids = np.arange(n)
+    return [np.ones(n, bool)] + [ids % folds != k for k in range(min(folds, n))]
+
+
+def fit(fits: Fits, problem: Problem, ext: Extension, theta0, solver: AbstractEigensolver = Direct(),
+        skip: bool = False) -> Fit:
+    """Fit one extension on all modes (``skip``: evaluate at θ₀)."""
+    lam_e = np.asarray(problem.lam_e)
+    try:
+        out = jax.tree.map(np.asarray, fits.solve(theta0, with_extension(problem, ext, np.ones(len(lam_e), bool)),
+                                                  solver, skip))
+    except (RuntimeError, ValueError) as err:  # a trial step made the model non-finite: report, do not rank
+        if isinstance(err, ValueError) and "CpuCallback error" not in str(err):
+            raise  # a check in a host callback arrives as either (a fit on a thread at 33k: ValueError)
+        return Fit(np.asarray(theta0), float("inf"), float("nan"), float("nan"), np.full(len(lam_e), np.nan),
+                   np.full(len(lam_e), np.nan), None, str(err).splitlines()[0])
+    theta, (cf, cs), _, lam_a, paired, macs, jac = out
+    return Fit(theta, float(cf + cs), float(cf), float(cs), _deviation(lam_a, paired, lam_e),
+               np.where(paired, macs, np.nan), jac)
+
+
+def cross_validate(fits: Fits, problem: Problem, ext: Extension, result: Fit, masks,
+                   solver: AbstractEigensolver = Direct()) -> HeldOut:
+    """Held-out costs and Δf, MAC per test mode, each fold fitted from the all-modes fit."""
+    lam_e = np.asarray(problem.lam_e)
+    dev, macs_out, cf, cs = np.full(len(lam_e), np.nan), np.full(len(lam_e), np.nan), 0.0, 0.0
+    for m in masks[1:]:
+        _, _, (hf, hs), lam_a, paired, macs, _ = fits.solve(result.theta, with_extension(problem, ext, m), solver)
+        cf += float(hf)
+        cs += float(hs)
+        dev[~m] = _deviation(np.asarray(lam_a), np.asarray(paired), lam_e)[~m]
+        macs_out[~m] = np.where(np.asarray(paired), np.asarray(macs), np.nan)[~m]
+    return HeldOut(cf, cs, dev, macs_out)
+
+
+def _deviation(lam_a, paired, lam_e) -> np.ndarray:
+    return np.asarray(paired_freq_dev(jnp.asarray(lam_a), jnp.asarray(paired), jnp.asarray(lam_e)))
