@@ -16,7 +16,7 @@ and it needed a fresh preconditioner. Derivatives of the paired modes are exact
   rounding), derivatives of the paired ones by ``jaxfem.ritz_modes``.
 - :class:`Subspace`: the lowest modes by ``jaxfem.subspace``, warm-started from the last
   iterate and preconditioned with a fixed (K − σM)⁻¹ of a nearby model (Monte-Carlo).
-- :class:`Reduced`: Rayleigh–Ritz on a fixed basis (:mod:`updating._reduced`): the
+- :class:`Reduced`: Rayleigh–Ritz on a fixed basis (:mod:`updating.diagnosis._reduced`): the
   diagnosis' candidate fits on a large model.
 
 A new solver subclasses :class:`AbstractEigensolver`. One vocabulary names the choice
@@ -142,12 +142,12 @@ class Reduced(AbstractEigensolver):
     With a ``pool`` of element ids holding every element that θ changes, only the pool
     is assembled: ``Vᵀ K(θ) V = fixed + Vᵀ K_pool(θ) V`` (``fixed``: the rest, constant),
     exact and cheap on a large model. With ``linear`` (K and M linear in each factor
-    e^θᵢ of the extension's parameters, checked by :meth:`updating._reduced.Bases._linear`:
+    e^θᵢ of the extension's parameters, checked by :meth:`updating.diagnosis._reduced.Bases._linear`:
     a group's factor, dormant masses or springs woken, springs that hold a connection,
     a patch's part of its shells' stiffness): ``Vᵀ K(θ) V = fixed + Σᵢ (e^(θᵢ − cᵢ) − 1)
     Vᵀ ∂ᵢK V`` about the basis' ``centre`` c, no assembly at all (600 shells projected at
     r = 768: 0.3 s, an eigensolution of that size 0.07 s; the 33k seam's fits 3.5× faster). Accurate while the basis spans the changed shapes
-    (:mod:`updating._reduced`). Columns ``padding`` (zero, so that bases of different
+    (:mod:`updating.diagnosis._reduced`). Columns ``padding`` (zero, so that bases of different
     sizes share a compiled fit) enter as uncoupled modes just above the others (:func:`padded`). ``observed``:
     the basis at the sensors, C V, formed once (C V at every θ took a fifth of a reduced
     evaluation at 33,000 DoFs)."""

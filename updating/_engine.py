@@ -201,7 +201,7 @@ def run(theta0: Float[Array, " p"], problem: Problem, eigensolver: AbstractEigen
         # converged: the step taken and the undamped Gauss–Newton step from its end both within the
         # tolerance; a Levenberg–Marquardt step is damped (λ = 1 at first) and where JᵀJ ≪ 1 (a
         # softened seam's stiffness) it is short however far the minimum lies. Minimum-norm lstsq, not
-        # the step's QR: a padded inert column is zero where μ = 0 (updating._evidence.Fits)
+        # the step's QR: a padded inert column is zero where μ = 0 (updating.diagnosis._fit.Fits)
         gn = jnp.linalg.lstsq(opt.f_info.jac.as_matrix(), -opt.f_info.residual)[0]
         remaining = jnp.max(jnp.abs(gn) if settings.relative else jnp.abs(jnp.expm1(new + gn) - jnp.expm1(new)))
         converged = (moved & (change <= settings.tolerance) & (remaining <= settings.tolerance)) \

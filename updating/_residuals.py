@@ -51,7 +51,7 @@ class Problem(eqx.Module):
     min_mac: float = eqx.field(static=True)
     max_freq_dev: float = eqx.field(static=True)
     sparse: bool = eqx.field(static=True, default=False)  # the sparse eigensolver, else the dense
-    extension: eqx.Module | None = None  # a candidate effect's parameters (updating._effects.Extension)
+    extension: eqx.Module | None = None  # a candidate effect's parameters (updating.Extension)
 
     def model(self, theta: Float[Array, " p"]) -> Model:
         """The model at θ: the parameters' factors, then the extension's (trailing θ entries)."""

@@ -1,4 +1,4 @@
-"""The abstract physical effect: what every kind of :mod:`updating._effects` owns."""
+"""The abstract physical effect: what every kind of :mod:`updating.diagnosis._effects` owns."""
 
 from __future__ import annotations
 

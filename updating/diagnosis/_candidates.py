@@ -1,6 +1,6 @@
 """Candidate effects of a diagnosis: generated from the model by each kind
-(:mod:`updating._effects`), screened by the linearised residual reduction ρ at the
-baseline (Friswell & Mottershead 1995, §7; :func:`~updating._localisation.reduction`),
+(:mod:`updating.diagnosis._effects`), screened by the linearised residual reduction ρ at the
+baseline (Friswell & Mottershead 1995, §7; :func:`~updating.diagnosis._localisation.reduction`),
 shortlisted for a full fit.
 
 All candidates share one model, so that their fits share one compiled solver: the
@@ -323,7 +323,7 @@ def shell_grids(model: Model, region: list[int]) -> list[int]:
 
 def patch_candidates(model: Model, region: list[int], screen: Screen, kinds) -> list[Candidate]:
     """Patches of every kind in ``kinds`` (:data:`PATCHES`) about each grid of ``region``
-    that carries shells, for each radius of the ladder :data:`~updating._effects.RADII`
+    that carries shells, for each radius of the ladder :data:`~updating.diagnosis._patch_effects.RADII`
     (× the shell size): screened by ρ of their column, to start at the linearised step."""
     h, mass = shell_size(model), total_mass(model)
     out = []
@@ -371,7 +371,7 @@ def patch_neighbours(model: Model, c: Candidate, f_e) -> list[AbstractPatch]:
 
 
 def pool(model: Model, cands: list[Candidate], dormant, stiffened) -> tuple[int, ...]:
-    """The elements the reduced fits assemble at each step (:attr:`updating._reduced.Bases.pool`):
+    """The elements the reduced fits assemble at each step (:attr:`updating.diagnosis._reduced.Bases.pool`):
     the dormant ones, the released joints' springs, and the shells of the patches among
     ``cands`` with one ring of shells about them (a patch moved to a neighbouring grid
     by the hill-climb stays inside)."""
@@ -384,7 +384,7 @@ def pool(model: Model, cands: list[Candidate], dormant, stiffened) -> tuple[int,
 
 def structural_candidates(aug: Model, stiffened: list[Released]) -> list[Candidate]:
     """The released joints, seams and supports of ``aug`` (:func:`structural_candidate`),
-    and the longer runs about each seam on its line (:meth:`~updating._effects.Seam.longer`)."""
+    and the longer runs about each seam on its line (:meth:`~updating.diagnosis._seam.Seam.longer`)."""
     runs = [[r] + ([r.seam(s) for s in r.effect.longer(r.line)] if isinstance(r.effect, Seam) else [])
             for r in stiffened]
     return [structural_candidate(aug, r) for rs in runs for r in rs]
@@ -401,7 +401,7 @@ def structural_candidate(aug: Model, released: Released, theta0=None) -> Candida
 
 
 def seam_neighbours(aug: Model, c: Candidate, coarse: bool = False) -> list[Candidate]:
-    """The seams next to a fitted one on its released line (:meth:`~updating._effects.Seam.neighbours`),
+    """The seams next to a fitted one on its released line (:meth:`~updating.diagnosis._seam.Seam.neighbours`),
     to start at its fitted values."""
     r, theta = c.released, c.fit.theta
     return [structural_candidate(aug, r.seam(s), theta[len(theta) - len(c.theta0):])

@@ -8,17 +8,17 @@ modes (modal strain energy, :func:`jaxfem.element_strain_energies`):
 
 F_Rn is the share of mode n's strain energy in R. The prediction is linear in (μ, κ, η),
 so a region's fit is a weighted least-squares problem in three numbers, and its Laplace
-evidence (:func:`updating._evidence.log_evidence`) is exact. Every region is therefore
+evidence (:func:`updating.diagnosis._evidence.log_evidence`) is exact. Every region is therefore
 fitted, not a shortlist: each property group, and the elements within each radius of
-the ladder :data:`~updating._effects.RADII` (× the element size) of every grid. The
+the ladder :data:`~updating.diagnosis._patch_effects.RADII` (× the element size) of every grid. The
 measured ratios (e.g. :func:`identification.identify` from FRFs) are paired with the
 model's modes by MAC and frequency; each has the standard deviation ``noise`` × ζ.
 
-The decision is the structural diagnosis' (:func:`updating._evidence.evidence`): the
+The decision is the structural diagnosis' (:func:`updating.diagnosis._evidence.evidence`): the
 most probable region is declared when it is decisively more probable than Rayleigh
 damping alone (ln Bayes factor ≥ ln 20), lowers χ² beyond noise and lowers the
 held-out χ² of the damping ratios (modes held out in folds, each predicted by a fit on
-the others) beyond noise. Priors: η half-normal (σ :data:`~updating._effects.ETA_SD`),
+the others) beyond noise. Priors: η half-normal (σ :data:`~updating.diagnosis._patch_effects.ETA_SD`),
 μ and κ broad normals. Where even the best region leaves χ²/row above 1, σ² is scaled by
 it (``noise_scale``). The posterior is over Rayleigh alone and the ``n_report`` most
 probable regions (neighbouring patches share it where the data cannot tell them apart).

@@ -170,7 +170,7 @@ class Joint(AbstractAddedElements):
         return _release(model, self.nodes, self.pids, self._need("k_trans"), self._need("k_rot"))
 
     def at_reference(self, model: Model, f_test_hz) -> Joint:
-        """Slightly flexible (:func:`~updating._topology.joint_reference` of the released side)."""
+        """Slightly flexible (:func:`~updating.diagnosis._topology.joint_reference` of the released side)."""
         dep = masters(model)
         if not all(n in dep for n in self.nodes) and len(self.pids) < 2:
             raise ValueError(f"joint at grid(s) {list(self.nodes)}: not RBE2-dependent; name the two "
@@ -233,7 +233,7 @@ class BoundarySpring(AbstractAddedElements):
 
     def at_reference(self, model: Model, f_test_hz) -> BoundarySpring:
         """On free grids a spring that alone would carry the structure at f₁/10; a released
-        support slightly flexible (:func:`~updating._topology.joint_reference`)."""
+        support slightly flexible (:func:`~updating.diagnosis._topology.joint_reference`)."""
         if not any(constrained_components(model, n) for n in self.nodes):
             k = total_mass(model) * (2 * np.pi * float(np.min(np.asarray(f_test_hz, float))) / 10) ** 2
             return replace(self, k=k, k_trans=None, k_rot=None)

@@ -27,12 +27,12 @@ class DiagnoseOptions:
     by more than ``tolerance`` relative (|Δ ln factor|), at most ``max_steps`` steps.
     ``eigensolver``: as the updating option (``auto``: the parameters' own).
     ``reduce_above``: on a model of at least this many DoFs, the candidates are screened,
-    fitted and cross-validated on reduced models (:mod:`updating._reduced`); the most
+    fitted and cross-validated on reduced models (:mod:`updating.diagnosis._reduced`); the most
     probable ones are evaluated on the full model at their fitted θ, and fitted again
     there where the costs differ (:func:`_on_full_model`); the full model's values are
     the ones reported.
     ``ray``: the shortlisted candidates fitted on Ray workers (``"local"``, ``"auto"`` or
-    a cluster address, :func:`updating._ray.fit_candidates_ray`; ``ray_workers`` of them,
+    a cluster address, :func:`updating.diagnosis._ray_fits.fit_candidates_ray`; ``ray_workers`` of them,
     default one per CPU); the hill-climb and the cross-validation stay on the driver.
     ``threads``: without Ray, the shortlisted candidates, and the neighbours of each step of
     the hill-climbs, are fitted on this many threads of this process, sharing its compiled

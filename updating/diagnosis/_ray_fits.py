@@ -29,7 +29,7 @@ class _FitWorker:
 def fit_candidates_ray(problem, settings, jobs: list[tuple], *, address: str | None = None,
                        workers: int | None = None, num_cpus: int = 1, max_retries: int = 3):
     """Yield ``(job, (θ₀, fit))`` of a diagnosis' candidate fits as they finish, fitted on
-    Ray workers (:func:`updating._evidence.candidate_fit`; ``job = (index, ext, θ_b, scan,
+    Ray workers (:func:`updating.diagnosis._fit.candidate_fit`; ``job = (index, ext, θ_b, scan,
     θ₀, eigensolver)``); ``address``, ``workers``, ``num_cpus``, ``max_retries`` as for
     :func:`montecarlo_ray`."""
     with ray_cluster(address, "diagnose --ray") as ray:

@@ -116,7 +116,7 @@ class Bases:
     the engineer's log-factors and that 0. ``pool``: element ids (sorted) assembled at each
     step of a candidate that changes only these (module docstring; at first none, which
     serves the baseline without parameters); None: the whole model at each step.
-    ``modes``: the baseline's (:func:`~updating._element_sensitivity._modes`)."""
+    ``modes``: the baseline's (:func:`~updating.diagnosis._element_sensitivity._modes`)."""
 
     def __init__(self, problem: Problem, theta_b):
         # the matrices are compiled once for all candidates (their masks are arrays), their

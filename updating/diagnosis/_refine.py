@@ -130,7 +130,7 @@ def refine_patches(fitted, model: Model, aug: Model, short: list[Candidate], bas
 def refine_seams(fitted, aug: Model, short: list[Candidate], base: Fit) -> list[tuple[Candidate, Candidate]]:
     """Hill-climb of the best fitted seam that takes at least half the cost reduction of
     the best candidate (as a patch, :func:`refine_patches`) on its released line
-    (:meth:`~updating._effects.Seam.neighbours`): first in coarse moves (half its length
+    (:meth:`~updating.diagnosis._seam.Seam.neighbours`): first in coarse moves (half its length
     along, each end or both a quarter of it out or in, the length ladder), then in fine ones (one
     grid along, each end out or in), the last move made once more first, the neighbours
     fitted, moving while one fits better. Fits join ``short``."""

@@ -21,7 +21,7 @@ MAC_LINEAR = 0.9  # a mode's shape rows enter the screen when it pairs with at l
 @dataclass
 class Screen:
     """Weighted residual ``r`` at the baseline and its linearisation: ``jac`` per element
-    and kind of change (:mod:`updating._element_sensitivity`), ``J_b`` the baseline
+    and kind of change (:mod:`updating.diagnosis._element_sensitivity`), ``J_b`` the baseline
     parameters; ``row_mode``: test mode of each row; ``f_e``, ``f_ref`` (Hz)."""
 
     r: np.ndarray
@@ -36,7 +36,7 @@ class Screen:
            kinds=KINDS, modes=None) -> Screen:
         """At θ of ``problem`` (whose first parameters are ``params`` of ``model``); the
         element columns of ``kinds`` (the baseline's stiffness and mass always); ``modes``:
-        the model's at θ if solved (:func:`~updating._element_sensitivity.element_jacobian`)."""
+        the model's at θ if solved (:func:`~updating.diagnosis._element_sensitivity.element_jacobian`)."""
         jac = element_jacobian(problem, np.asarray(theta), tuple(dict.fromkeys(("k", "m") + tuple(kinds))), modes)
         screen = cls(jac.r, jac, np.zeros((len(jac.r), 0)), _row_modes(problem),
                      f_e, float(np.exp(np.mean(np.log(f_e)))))
@@ -49,7 +49,7 @@ class Screen:
         return screen
 
     def column(self, scales: str, eids) -> np.ndarray:
-        """One column: the change ``scales`` (a kind of :data:`~updating._element_sensitivity.KINDS`:
+        """One column: the change ``scales`` (a kind of :data:`~updating.diagnosis._element_sensitivity.KINDS`:
         stiffness "k", mass "m", a shell part, shell non-structural mass) of ``eids`` together."""
         J, ids = self.jac.columns.get(scales), self.jac.ids.get(scales)
         if J is None:
@@ -57,7 +57,7 @@ class Screen:
         return J[:, np.isin(ids, np.asarray(list(eids), np.int64))].sum(axis=1, keepdims=True)
 
     def rho(self, columns: np.ndarray, joint: bool = False) -> np.ndarray | float:
-        """Method (a), :func:`~updating._localisation.reduction` of ``columns`` beside the
+        """Method (a), :func:`~updating.diagnosis._localisation.reduction` of ``columns`` beside the
         baseline's: on all rows or on the :meth:`linear` rows, whichever is higher."""
         rows = self.linear()
         return np.maximum(reduction(self.r, columns, self.J_b, joint=joint),

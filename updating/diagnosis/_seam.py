@@ -127,7 +127,7 @@ class Seam(AbstractAddedElements):
         return _release(model, self.nodes, self.pids, self._need("k_trans"), self._need("k_rot"), self.shares(model))
 
     def at_reference(self, model: Model, f_test_hz) -> Seam:
-        """A joint's reference (:func:`~updating._topology.joint_reference` of the beams)
+        """A joint's reference (:func:`~updating.diagnosis._topology.joint_reference` of the beams)
         per unit of the mean share: slightly softer than rigid."""
         side = [e for n in self.nodes for e, p in elements_at(model, n).items() if p == self.pids[1]]
         share = float(np.mean(self.shares(model)))

@@ -243,7 +243,7 @@ def shell_size(model: Model) -> float:
 
 def patch_elements(model: Model, node: int, radius: float) -> tuple[int, ...]:
     """Shells whose centres lie within ``radius`` (m) of grid ``node``, and at least those
-    attached to it (a patch, :class:`~updating._effects.AbstractPatch`)."""
+    attached to it (a patch, :class:`~updating.diagnosis._patch_effects.AbstractPatch`)."""
     ids, centres, corners = shell_centres(model)
     row = model.node_index([node])[0]
     inside = np.linalg.norm(centres - np.asarray(model.xyz)[row], axis=1) <= radius * (1 + 1e-9)

@@ -5,7 +5,7 @@ deviations Δα (eq. 4.4, Figs. 4.24–4.26), the frequency deviations Δf_n (eq
 Figs. 4.27–4.29) and the MAC deviations ΔMAC_n (eq. 4.6, Figs. 4.30–4.32), all in %.
 The statistics are those of :meth:`MonteCarloResult.statistics` (failed samples left
 out); the failures of every cell are written under each figure. Figures are drawn on
-private Agg canvases (:mod:`updating._plots`).
+private Agg canvases (:mod:`updating.report._plots`).
 """
 
 from __future__ import annotations

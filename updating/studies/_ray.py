@@ -3,7 +3,7 @@
 Each chunk ``(n, start, stop)`` is a call on a Ray actor: one worker process that pins
 its CPUs, runs float64 on one JAX device and keeps one :class:`Runner` (its compiled
 n-mode groups) for all the chunks it is given. Chunks come back as they finish and go
-through the same collection as :func:`updating._montecarlo.montecarlo` (incremental
+through the same collection as :func:`updating.studies._montecarlo.montecarlo` (incremental
 files, resume, progress); the sample keys do not depend on where a chunk ran, so the
 result equals that of one process with as many cores as a worker (XLA-CPU splits some
 reductions by its thread count). A chunk whose worker process or node is lost is run

@@ -4,7 +4,7 @@
 the parameters, the numbers of modes, the measurement errors of Table 4.7, samples,
 seed, chunking); :class:`MonteCarloResult` holds the samples and their statistics:
 Δα = α(δ)/α(0) − 1 (eq. 4.4), Δf_n (eq. 4.5) and ΔMAC_n (eq. 4.6) per category,
-magnitude and number of modes. :mod:`updating._montecarlo` runs a study.
+magnitude and number of modes. :mod:`updating.studies._montecarlo` runs a study.
 """
 
 from __future__ import annotations
