@@ -221,7 +221,7 @@ def test_more_parameters_than_rows_warns_and_says_so_in_the_result(frame, measur
                                          r"residual = 'eigenvalue'\): the fit is under-determined"):
         res = update(frame, measured, ParameterSet(SIX, opts))
     assert len(res.warnings) == 1 and "'converged' does not mean identified" in res.warnings[0]
-    assert json.loads(json.dumps(res.to_json()))["warnings"] == res.warnings
+    assert json.loads(json.dumps(res.to_json()))["warnings"] == list(res.warnings)
 
 
 def test_more_parameters_than_rows_is_refused_for_plain_gauss_newton(frame, measured):

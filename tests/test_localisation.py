@@ -13,7 +13,6 @@ from benchmarks.frames import frame_bdf
 from identification import ModalData, Sensors, observation_matrix
 from jaxfem.io import read_bdf_text
 from updating import Options, Parameter, ParameterSet, build_problem, parameterise
-import updating.diagnosis._localisation as localisation
 from benchmarks import cfrp_panel
 from updating.diagnosis._localisation import _element_dofs, group_scores, parameter_reduction, residual_forces
 
@@ -95,7 +94,7 @@ def test_residual_forces_sparse_equals_dense_least_squares(frame, backend, monke
     A is well conditioned, cond ≤ 2·10⁵), noise floor included, with either factorisation."""
     if backend == "pardiso":
         pytest.importorskip("pypardiso")
-    monkeypatch.setattr(localisation._sparse, "resolve_backend", lambda *args, **kwargs: backend)
+    monkeypatch.setattr(jaxfem, "resolve_sparse_backend", lambda *args, **kwargs: backend)
     model, lam, phi_e, C = frame
     _assert_scores(residual_forces(model, lam, phi_e, C), _dense_reference(model, lam, phi_e, C))
 

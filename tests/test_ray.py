@@ -115,7 +115,7 @@ def test_candidate_fits_on_ray_equal_one_process(cores, joint):  # noqa: F811
     for job in jobs:
         theta0, here = candidate_fit(fits, problem, *job[1:])
         there = remote[job[0]]
-        assert there[1]["theta"].dtype == np.float64
+        assert there[1].theta.dtype == np.float64
         np.testing.assert_allclose(there[0], theta0)
-        np.testing.assert_allclose(there[1]["theta"], here["theta"], rtol=1e-7, atol=1e-9)
-        np.testing.assert_allclose(there[1]["cost"], here["cost"], rtol=1e-7)
+        np.testing.assert_allclose(there[1].theta, here.theta, rtol=1e-7, atol=1e-9)
+        np.testing.assert_allclose(there[1].cost, here.cost, rtol=1e-7)
