@@ -32,7 +32,7 @@ def test_laplace_is_exact_for_a_linear_gaussian_model():
 
 
 def _result(where="node 214", chi2=1.1, log_z=250.0):
-    from updating.diagnosis import AddedMass, CandidateResult, Checks
+    from updating.diagnosis import CandidateResult, Checks
 
     effect = updating.Effect("added_mass", nodes=(int(where.split()[-1]),), values={"m": 0.4})
     return CandidateResult(effect, 1, 0.97, log_z, 0.0, (0.1,), "add 0.4 kg (±0.05 kg) at grid 214", 0.0, None, None,
