@@ -116,7 +116,6 @@ class _Run:
 
     options: DiagnoseOptions
     params: tuple
-    say: Callable[[str], None]
     start: float
     sigma2: float
     fits: Fits
@@ -126,6 +125,11 @@ class _Run:
     solvers: dict | None = None
     mass: float = 0.0  # of the nominal model (the effects' plausibility)
     progress: ProgressFn | None = None
+
+    @property
+    def say(self) -> Callable[[str], None]:
+        """A line of progress (:class:`updating.Progress`)."""
+        return progress_lines(self.progress)
 
     def elapsed(self) -> str:
         return f"{time.perf_counter() - self.start:.0f} s"
@@ -160,8 +164,8 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     solver = eigensolver_name(options.eigensolver, parameters)
     pset = ParameterSet(params, Options(eigenvalue_weight=w_lam, regularisation=sigma2 / 9, eigensolver=solver,
                                         n_model_modes=parameters.options.n_model_modes if parameters else None))
-    run = _Run(options, params, progress_lines(progress), time.perf_counter(), sigma2, Fits(options.settings),
-               solvers={}, mass=total_mass(model), progress=progress)
+    run = _Run(options, params, time.perf_counter(), sigma2, Fits(options.settings), solvers={},
+               mass=total_mass(model), progress=progress)
     f_e = np.asarray(test.frequencies_hz)
     where = _localise(run, model, test, pset, f_e)
     base, base_held, masks = _baseline(run, where.aug, ne)
