@@ -87,14 +87,14 @@ def test_mpc_continuation_rows_and_blank_terms():
         ("RBE3,20,,4,123,1.,123,1,TREF\n", ("RBE3 20 field 9: expected a weight, UM or ALPHA",)),
         ("MPC,1,1,1,0.,2,1,-1.\n", ("m.bdf:1: MPC 1 field 5 (A1): A1 must be nonzero",)),
         ("MPC,1,1,1,,2,1,-1.\n", ("MPC 1 field 5 (A1): A1 must be nonzero",)),
-        ("MPC,1,1,0,1.,2,1,-1.\n", ("MPC 1 field 4 (C1): component must be one of 1..6 (scalar points",)),
+        ("MPC,1,1,7,1.,2,1,-1.\n", ("MPC 1 field 4 (C1): component must be one of 1..6 (a grid) or 0/blank",)),
         ("MPC,1,1,1,1.,2,12,-1.\n", ("MPC 1 field 7 (C2): component must be one of 1..6", "got 12")),
         ("MPC,1,1,1,1.,1,1,2.\n", ("MPC 1 field 6 (G2): grid 1 component 1 is the dependent DoF",)),
         ("MPC,1,1,1,1.,,1,2.\n", ("MPC 1 field 6 (G2): required field is blank",)),
         ("MPC,1,1,1,1.,2,1,-1.,5\n", ("MPC 1 field 9: must be blank",)),
         ("MPC,1,1,1,1.\n3,2,1,-1.\n", ("field 1 is not a card name",)),
         ("MPC,1,1,1,1.\n,3,2,1,-1.\n", ("m.bdf:2: MPC 1 field 2: must be blank",)),
-        ("CONM2,20,1,,1.\nRBE3,20,,4,123,1.,123,1,2\n", ("m.bdf:2: RBE3 20: duplicate element id 20",)),
+        ("CONM2,20,1,,1.\nCELAS2,20,1.,1,1\n", ("m.bdf:2: CELAS2 20: duplicate element id 20",)),
     ],
 )
 def test_parse_errors(text, parts):
@@ -407,9 +407,12 @@ CONM2,14,4,,1.
          {}),
         ("MPC,1,1,1,1.,2,1,-1.\nMPC,2,3,1,1.,4,1,-1.\n",
          ("m.bdf:10: MPC 2 field 2 (SID): several MPC sets [1, 2] (MPC 1 at m.bdf:9, MPC 2 at m.bdf:10); "
-          "choose one with mpc_set (--mpc-set on the command line)",), {}),
-        ("MPC,1,1,1,1.,2,1,-1.\n", ("m.bdf: MPC set 3 (mpc_set) is not in the file (sets: [1])",), {"mpc_set": 3}),
-        ("", ("m.bdf: MPC set 1 (mpc_set) is not in the file (sets: [])",), {"mpc_set": 1}),
+          "choose one in the case control (MPC = n) or with mpc_set (--mpc-set)",), {}),
+        ("MPC,1,1,1,1.,2,1,-1.\n", ("m.bdf: MPC set 3 (mpc_set or case control) is not in the bulk data (sets: [1])",),
+         {"mpc_set": 3}),
+        ("", ("m.bdf: MPC set 1 (mpc_set or case control) is not in the bulk data (sets: [])",), {"mpc_set": 1}),
+        ("MPC,1,1,0,1.,2,1,-1.\n", ("m.bdf:9: MPC 1 field 4 (C1): grid 1 needs a component 1..6 (0 or blank is for "
+                                    "scalar points), got 0",), {}),
     ],
 )
 def test_build_errors(cards, parts, kwargs):

@@ -317,8 +317,6 @@ def test_full_build_of_shells():
         (",8,0.001,45.,,8,", ",8,0.,45.,,8,", "m.bdf:11: PCOMP 3 field 3 (T1): ply thickness must be > 0, got 0.0"),
         (",8,0.001,45.,,8,,-45.", ",8,0.001,45.,MAYBE,8,,-45.",
          "m.bdf:11: PCOMP 3 field 5 (SOUT1): expected YES or NO, got 'MAYBE'"),
-        (",8,0.001,45.,,8,,-45.", ",8,0.001,45.\n,8,0.002",
-         "m.bdf:11: PCOMP 3 field 6 (MID2): empty ply slot before ply 2"),
         # MAT8, MAT2 fields and values
         ("MAT8,8,1.4+11,", "MAT8,8,,", "m.bdf:7: MAT8 8 field 3 (E1): required field is blank"),
         ("MAT8,8,1.4+11,1.+10,", "MAT8,8,1.4+11,,", "m.bdf:7: MAT8 8 field 4 (E2): required field is blank"),
@@ -412,3 +410,10 @@ def test_warped_quad_warns_with_its_location():
     assert len(model.quads.ids) == 1
     # below the warning limit: no warning (warnings are errors in this suite)
     _tables(read_bdf_text(BASE.replace("GRID,3,,1.,1.,0.", "GRID,3,,1.,1.,0.1"), name="m.bdf"))
+
+
+def test_pcomp_written_one_ply_per_line_equals_two_per_line():
+    """A blank ply slot is no ply (decks write one ply per continuation line)."""
+    one = read_bdf_text("PCOMP,3\n,8,0.001,45.\n,8,0.002,-45.\n,9,0.003\n", name="m.bdf")["PCOMP"][0]
+    two = read_bdf_text("PCOMP,3\n,8,0.001,45.,,8,0.002,-45.\n,9,0.003\n", name="m.bdf")["PCOMP"][0]
+    assert one == two and one["T"] == (0.001, 0.002, 0.003) and one["MID"] == (8, 8, 9)

@@ -1,18 +1,23 @@
-"""What the bulk-data reader returns: cards, the parsed file, and its located errors.
+"""What the bulk-data reader returns: cards, the parsed deck, and its located errors.
 
 A :class:`Card` holds its name, typed values keyed by QRG field name (MSC Nastran QRG,
 "Bulk Data Entry Format") and where each came from; :class:`BulkData` the supported cards
-by name in file order and the locations of the unsupported ones (split into those that
-may define structure and those that cannot change stiffness or mass); a
+by name in deck order, the locations of the unsupported ones (split into those that
+may define structure and those that cannot change stiffness or mass), the case control
+and the files read; a
 :class:`BulkDataError` names file, line, card, id and field, e.g.
-``model.bdf:17: CBAR 1001 field 4 (GA): expected an integer, got '1.5'``. SPC1 ``THRU``
-lists are :class:`IdRanges`, never expanded.
+``model.bdf:17: CBAR 1001 field 4 (GA): expected an integer, got '1.5'``. SPC1 and SPOINT
+``THRU`` lists are :class:`IdRanges`, never expanded.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from ._case import CaseControl
 
 
 class BulkDataError(ValueError):
@@ -31,7 +36,7 @@ class UnsupportedCardsError(BulkDataError):
 
 
 class IdRanges(Sequence):
-    """Ids listed with ``THRU`` (SPC1): runs (first, last) kept as they are, so that
+    """Ids listed with ``THRU`` (SPC1, SPOINT): runs (first, last) kept as they are, so that
     ``1 THRU 99999999`` is two integers, never a list of 10⁸. Iterates, indexes and
     compares like the tuple of the ids it stands for."""
 
@@ -82,21 +87,28 @@ class IdRanges(Sequence):
 
 Value = int | float | str | tuple | IdRanges | None
 
-# Unsupported cards that cannot change stiffness or mass (MSC QRG): eigenvalue and solution
-# control, loads, output, design, aero, reduction sets. Ignored with a warning; any other
-# unsupported card is taken to define structure (an element, property, material, rigid
-# element, constraint set, coordinate system, matrix such as DMIG) and refused by
-# build_model unless allow_unsupported=True.
+# Unsupported cards that cannot change stiffness or mass (MSC QRG, per card): solution
+# control, loads, output, design optimisation, aeroelasticity, reduction sets. Ignored with
+# a warning; any other unsupported card is taken to define structure (an element, property,
+# material, constraint, coordinate system such as CORD3G, matrix such as DMI, nonstructural
+# mass NSM*) and refused by build_model unless allow_unsupported=True. EIGR, EIGRL, SUPORT
+# and SUPORT1 have no effect on stiffness or mass either, but they are read (case control
+# selects them).
 _NO_EFFECT = frozenset({
-    "EIGRL", "EIGR", "EIGC", "EIGB", "EIGP", "DAREA", "DLOAD", "DPHASE", "DELAY", "LOAD", "LSEQ", "GRAV",
-    "ACCEL", "ACCEL1", "RFORCE", "SPCD", "DEFORM", "SET1", "SET2", "SET3", "PLOTEL", "MONPNT1", "MONPNT3",
-    "SUPORT", "SUPORT1", "ASET", "ASET1", "BSET", "BSET1", "CSET", "CSET1", "QSET", "QSET1", "OMIT", "OMIT1",
-    "USET", "USET1", "SEQGP", "SEQSET", "SPOINT", "EPOINT", "DESVAR", "DCONSTR", "DCONADD", "DOPTPRM",
-    "DLINK", "DEQATN", "DTABLE", "DTI", "AERO", "AEROS", "AESTAT", "AELIST", "AEFACT", "FLUTTER", "FLFACT",
-    "TRIM", "NLPARM", "NLPCI", "RANDPS", "RANDT1", "ECHOON", "ECHOOFF",
+    "EIGC", "EIGB", "EIGP", "DAREA", "DLOAD", "DPHASE", "DELAY", "LOAD", "LSEQ", "GRAV", "ACCEL", "ACCEL1",
+    "RFORCE", "SPCD", "DEFORM", "SET1", "SET2", "SET3", "PLOTEL", "ASET", "ASET1", "BSET", "BSET1", "CSET", "CSET1",
+    "QSET", "QSET1", "OMIT", "OMIT1", "USET", "USET1", "SEQGP", "SEQSET", "EPOINT", "DESVAR", "DCONSTR", "DCONADD",
+    "DOPTPRM", "DSCREEN", "DLINK", "DEQATN", "DTABLE", "DTI", "DVGRID", "MODTRAK", "AERO", "AEROS", "AESTAT",
+    "AELIST", "AEFACT", "AECOMP", "AECOMPL", "AELINK", "AEPARM", "AESCALE", "AEFORCE", "AEPRESS", "AEDW",
+    "CSSCHD", "DIVERG", "GUST", "UXVEC", "FLUTTER", "FLFACT", "TRIM", "TRIM2", "NLPARM", "NLPCI", "RANDPS",
+    "RANDT1", "ECHOON", "ECHOOFF",
 })
 _NO_EFFECT_PREFIXES = ("FREQ", "TABLE", "TABD", "TABRND", "TSTEP", "RLOAD", "TLOAD", "PLOAD", "FORCE", "MOMENT",
-                       "TEMP", "DRESP", "DVPREL", "DVMREL", "DVCREL", "CAERO", "PAERO", "SPLINE", "MKAERO", "AESURF")
+                       "TEMP", "DRESP", "DVPREL", "DVMREL", "DVCREL", "CAERO", "PAERO", "SPLINE", "MKAERO", "AESURF",
+                       "MONPNT", "MONDSP")
+
+
+_ANONYMOUS = frozenset({"GRDSET", "SPOINT"})  # cards without an id: messages name none
 
 
 def _no_effect(name: str) -> bool:
@@ -127,22 +139,39 @@ class Card:
         return next(iter(self.values.values()))
 
     def where(self, key: str | None = None) -> str:
-        """``file:line: NAME id field n (KEY)``: where the card (or its field ``key``) is."""
+        """``file:line: NAME id field n (KEY)``: where the card (or its field ``key``) is
+        (no id for GRDSET and SPOINT, which have none)."""
         line, number = self.fields.get(key, (self.line, None)) if key is not None else (self.line, None)
-        return _where(self.file, line, self.name, self.id, number, key)
+        return _where(self.file, line, self.name, None if self.name in _ANONYMOUS else self.id, number, key)
 
     def error(self, key: str, message: str) -> BulkDataError:
         """A :class:`BulkDataError` located at field ``key`` of this card."""
         return BulkDataError(f"{self.where(key)}: {message}")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class BulkData:
-    """Parsed bulk data: supported cards by name (file order) and unknown card locations."""
+    """Parsed deck: supported cards by name (deck order), unknown card locations, the case
+    control (None when the deck has no ``BEGIN BULK``) and every file read, in order.
+
+    Two decks are equal when their cards, case control and unknown card names and counts
+    are: a deck split over INCLUDE files equals the deck merged into one.
+    """
 
     cards: dict[str, list[Card]]
     unknown: dict[str, list[tuple[str, int]]]  # card name -> [(file, line), ...]
-    source: str = field(compare=False)
+    source: str
+    case_control: CaseControl | None = None
+    files: tuple[str, ...] = ()
+
+    def __eq__(self, other) -> bool:
+        if not isinstance(other, BulkData):
+            return NotImplemented
+        return (self.cards, self.case_control, self._unknown_counts()) == (
+            other.cards, other.case_control, other._unknown_counts())
+
+    def _unknown_counts(self) -> dict[str, int]:
+        return {name: len(places) for name, places in self.unknown.items()}
 
     def __getitem__(self, name: str) -> list[Card]:
         """Cards of one kind in file order (empty list if none)."""
@@ -162,9 +191,21 @@ class BulkData:
             out.append(f"{name} x{len(places)} ({where}{more})")
         return "; ".join(out)
 
+    def card_status(self) -> dict[str, str]:
+        """Per card name in the deck (sorted): ``"read"`` (parsed), ``"ignored"`` (not read,
+        no effect on stiffness or mass) or ``"unsupported"`` (not read, may define structure)."""
+        status = {name: "read" for name, cards in self.cards.items() if cards}
+        status.update({name: "ignored" if _no_effect(name) else "unsupported" for name in self.unknown})
+        return dict(sorted(status.items()))
+
     def report(self) -> str:
-        """Plain-text summary: counts of the parsed cards and the unsupported (ignored) ones."""
+        """Plain-text summary: files, case control, counts of the parsed cards and the unsupported ones."""
         lines = [f"{self.source}: bulk data"]
+        if len(self.files) > 1:
+            lines.append(f"  files read: {', '.join(self.files)}")
+        if self.case_control is not None:
+            ids = ", ".join(str(s.id) for s in self.case_control.subcases)
+            lines.append(f"  case control: SOL {self.case_control.sol}, subcases {ids}")
         lines += [f"  {name:<8} {len(cards)}" for name, cards in sorted(self.cards.items())]
         if self.unknown:
             lines.append(f"  unsupported cards, ignored: {self.unknown_summary()}")

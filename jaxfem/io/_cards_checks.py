@@ -1,14 +1,15 @@
 """Fixed-layout bulk-data cards: the parser made from a field schema (:func:`_fixed`) and
-the value checks of GRID, CORD2R, CBAR, CBEAM, MAT1, CONM2, CELAS1/2, CBUSH, CQUAD4,
-CTRIA3 and PSHELL (MSC Nastran QRG, per card); what the model does not support is
-refused with a located :class:`BulkDataError`."""
+the value checks of GRID/GRDSET, CORD2R/C/S, CORD1R/C/S, CBAR, CBEAM, MAT1, CONM1, CONM2,
+the scalar elements' ends, CBUSH, CQUAD4, CTRIA3 and PSHELL (MSC Nastran QRG, per card);
+what the model does not support is refused with a located :class:`BulkDataError`."""
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 
 from ._bulkdata import Card
-from ._fields import _Raw, _read, _Spec
+from ._fields import _id, _Raw, _read, _Spec
 
 
 def _fixed(*schema: _Spec, check: Callable | None = None) -> Callable[[_Raw], list[Card]]:
@@ -22,6 +23,21 @@ def _fixed(*schema: _Spec, check: Callable | None = None) -> Callable[[_Raw], li
         return [raw.card(values, positions)]
 
     return parse
+
+
+def _cord1(raw: _Raw) -> list[Card]:
+    """CORD1R/C/S: one or two systems (CID, G1, G2, G3) per card, three distinct grids each."""
+    cards = []
+    for start in (0, 4):
+        if start and not any(raw.text(i) for i in range(4, 8)):
+            break
+        values, positions = _read(raw, (_id("CID"), _id("G1"), _id("G2"), _id("G3")), start, True)
+        grids = [values[k] for k in ("G1", "G2", "G3")]
+        if len(set(grids)) < 3:
+            raise raw.error(positions["G1"], "G1", f"the grids G1, G2, G3 must differ, got {grids}")
+        cards.append(raw.card(values, positions))
+    raw.end(8)
+    return cards
 
 
 def _orientation(raw: _Raw, values: dict, positions: dict, required: bool) -> None:
@@ -60,22 +76,37 @@ def _offt(raw: _Raw, values: dict, positions: dict) -> None:
 
 
 def _check_grid(raw: _Raw, values: dict, positions: dict) -> None:
-    if values["CP"] < 0:
-        raise raw.error(positions["CP"], "CP", f"coordinate system id must be >= 0, got {values['CP']}")
-    if values["CD"] != 0:
-        raise raw.error(
-            positions["CD"], "CD",
-            f"non-basic output systems are not supported: CD must be 0 or blank, got {values['CD']}",
-        )
+    """GRID and GRDSET: CP >= 0, CD >= -1 (-1: fluid point) or blank; a blank field stays None
+    until the GRDSET defaults are applied (:func:`jaxfem.io._cards._apply_grdset`)."""
+    for key, low in (("CP", 0), ("CD", -1)):
+        if values[key] is not None and values[key] < low:
+            raise raw.error(positions[key], key, f"coordinate system id must be >= {low}, got {values[key]}")
 
 
-def _check_cord2r(raw: _Raw, values: dict, positions: dict) -> None:
+def _check_cord2(raw: _Raw, values: dict, positions: dict) -> None:
     if values["RID"] < 0:
         raise raw.error(positions["RID"], "RID", f"reference system id must be >= 0, got {values['RID']}")
 
 
+def _old_orientation_flag(raw: _Raw, values: dict, positions: dict) -> None:
+    """CBAR field 9 as old decks write it: the flag F (1: X1–X3 is a vector, 2: X1 is a
+    grid G0) of earlier Nastran, read as OFFT GGG with a warning when it agrees with
+    field 6."""
+    flag = values["OFFT"]
+    if not isinstance(flag, int):
+        if not isinstance(flag, str):
+            raise raw.error(positions["OFFT"], "OFFT", f"expected a word, got {flag!r}")
+        return
+    if flag not in (1, 2) or (flag == 2) != (values["G0"] is not None):
+        raise raw.error(positions["OFFT"], "OFFT", f"expected a word (GGG, BGG, ...), got {flag}")
+    warnings.warn(f"{raw.card(values, positions).where('OFFT')}: {flag} is the orientation flag of earlier "
+                  "Nastran versions: read as OFFT GGG", UserWarning, stacklevel=6)
+    values["OFFT"] = "GGG"
+
+
 def _check_cbar(raw: _Raw, values: dict, positions: dict) -> None:
     _orientation(raw, values, positions, required=True)
+    _old_orientation_flag(raw, values, positions)
     _offt(raw, values, positions)
     _no_pins(raw, values, positions)
 
@@ -97,31 +128,47 @@ def _check_mat1(raw: _Raw, values: dict, positions: dict) -> None:
 
 
 def _check_conm2(raw: _Raw, values: dict, positions: dict) -> None:
-    if values["CID"] not in (0, -1):
-        raise raw.error(
-            positions["CID"], "CID",
-            f"CID {values['CID']} is not supported: offsets and inertia must be in the basic "
-            "system (CID 0 or blank; -1 for an absolute CG position)",
-        )
+    """CONM2 CID: a system id, 0 (basic) or -1 (X1..X3 a position in basic), QRG CONM2."""
+    if values["CID"] < -1:
+        raise raw.error(positions["CID"], "CID", f"CID must be >= -1, got {values['CID']}")
+
+
+def _check_conm1(raw: _Raw, values: dict, positions: dict) -> None:
+    """CONM1 CID: a system id >= 0 (QRG CONM1)."""
+    if values["CID"] < 0:
+        raise raw.error(positions["CID"], "CID", f"coordinate system id must be >= 0, got {values['CID']}")
 
 
 def _check_celas(raw: _Raw, values: dict, positions: dict) -> None:
-    """Ground is G blank or 0 (stored as None, component None); a grid needs component 1..6."""
-    ends = (("G1", "C1"), ("G2", "C2"))
-    for g, c in ends:
+    """Ends G1/C1, G2/C2 of CELAS1/2, CMASS1/2, CDAMP1/2 (QRG, per card): ground is G blank
+    or 0 (stored as G and C None); C is 1..6 at a grid, 0 or blank (stored 0) at a scalar
+    point (the builder checks which the point is)."""
+    for g, c in (("G1", "C1"), ("G2", "C2")):
         if values[g] is not None and values[g] < 0:
-            raise raw.error(positions[g], g, f"grid id must be >= 0, got {values[g]}")
+            raise raw.error(positions[g], g, f"grid or scalar point id must be >= 0, got {values[g]}")
         if not values[g]:
             if values[c] not in (None, 0):
                 raise raw.error(positions[c], c, "component must be blank or 0 for a grounded end")
             values[g] = values[c] = None
-        elif values[c] is None or not 1 <= values[c] <= 6:
+        elif values[c] is None:
+            values[c] = 0
+        elif not 0 <= values[c] <= 6:
             raise raw.error(
                 positions[c], c,
-                f"component of grid {values[g]} must be 1..6 (scalar points are not supported), got {values[c]}",
+                f"component of point {values[g]} must be 1..6 (a grid) or 0/blank (a scalar point), got {values[c]}",
             )
     if values["G1"] is None and values["G2"] is None:
         raise raw.error(positions["G1"], "G1", "both ends are grounded")
+
+
+def _check_scalar_points(raw: _Raw, values: dict, positions: dict) -> None:
+    """Ends S1, S2 of CELAS3/4, CMASS3/4, CDAMP3/4: scalar point ids, ground blank or 0 (None)."""
+    for s in ("S1", "S2"):
+        if values[s] is not None and values[s] < 0:
+            raise raw.error(positions[s], s, f"scalar point id must be >= 0, got {values[s]}")
+        values[s] = values[s] or None
+    if values["S1"] is None and values["S2"] is None:
+        raise raw.error(positions["S1"], "S1", "both ends are grounded")
 
 
 def _check_cbush(raw: _Raw, values: dict, positions: dict) -> None:

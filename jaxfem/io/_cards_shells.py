@@ -18,7 +18,8 @@ def _pcomp(raw: _Raw) -> list[Card]:
     ``MID``, ``T``, ``THETA`` [deg], ``SOUT`` are tuples over the plies as listed (LAM =
     SYM: the bottom half; the builder mirrors it). A blank MIDi or Ti takes the previous
     ply's value (QRG remark), so the first ply needs both; THETAi blank is 0.0, SOUTi NO.
-    LAM blank or SYM only; an empty ply slot between plies is refused; positions
+    LAM blank or SYM only; an empty ply slot (decks written one ply per line) is no ply,
+    as Nastran reads it; positions
     ``MIDi``, ``Ti``, ``THETAi``, ``SOUTi`` (i from 1, as listed) locate messages.
     """
     head = (_id("PID"), _re("Z0", None), _re("NSM"), _re("SB", None), ("FT", "word", None), _re("TREF"),
@@ -35,14 +36,10 @@ def _pcomp(raw: _Raw) -> list[Card]:
     ts: list[float] = []
     thetas: list[float] = []
     souts: list[str] = []
-    gap = None
     for i in range(8, len(raw.texts), 4):
         if not any(raw.text(j) for j in range(i, i + 4)):
-            gap = i if gap is None else gap
-            continue
+            continue  # a blank ply slot (one ply per line) is no ply
         k = len(mids) + 1
-        if gap is not None:
-            raise raw.error(gap, f"MID{k}", f"empty ply slot before ply {k}: plies must follow each other")
         for j, key in ((i, "MID"), (i + 1, "T")):
             if k == 1 and not raw.text(j):
                 raise raw.error(

@@ -2,7 +2,8 @@
 
 Physical lines are split into fields, free field (commas), small field (8 columns) or
 large field (16 columns, ``NAME*``), and continuation lines are joined to their card
-(markers checked); each data field is then typed as an id, integer, real (decimal point
+(markers checked; text in field 10 with no continuation after it is a comment, with a
+warning); each data field is then typed as an id, integer, real (decimal point
 required, Nastran exponents such as ``1.D-3`` and ``7.2+10``), number, word, DoF digits
 or anything, against a schema of (key, kind, default) per field (MSC Nastran QRG, "Bulk
 Data Entry Format"). Errors are :class:`BulkDataError` naming file, line, card and field.
@@ -11,7 +12,7 @@ What every field must be, whatever its card (the one check per input kind):
 
 - lines end at ``\\n`` or ``\\r\\n`` only (not at form feeds or U+2028, which
   ``str.splitlines`` would split on, moving every later line number); a leading UTF-8
-  byte-order mark is dropped;
+  byte-order mark is dropped (both in :mod:`jaxfem.io._deck`, which reads the files);
 - a field holds printable ASCII only: Python's ``int``/``float`` would read full-width or
   Arabic-Indic digits, and ``str.upper`` folds ``ı`` into ``I``;
 - a real is finite in 64-bit floating point (``1.E400`` is refused, not read as inf; NaN
@@ -25,6 +26,8 @@ from __future__ import annotations
 import math
 import re
 import unicodedata
+import warnings
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from ._bulkdata import BulkDataError, Card, Value, _where
@@ -36,10 +39,7 @@ _INT = re.compile(r"[+-]?\d+", re.ASCII)
 _REAL = re.compile(r"([+-]?(?:\d+\.\d*|\.\d+))((?:[ED][+-]?|[+-])\d+)?", re.ASCII)
 _WORD = re.compile(r"[A-Z][A-Z0-9_]*")
 _NAME = re.compile(r"[A-Z][A-Z0-9]*")
-_BEGIN_BULK = re.compile(r"\s*BEGIN\s+BULK\b")
-_ENDDATA = re.compile(r"\s*ENDDATA\b")
-_INCLUDE = re.compile(r"\s*INCLUDE\b")
-_LINE_END = re.compile(r"\r?\n")
+_DEQATN = re.compile(r"DEQATN\*?(?![A-Z0-9])", re.IGNORECASE)
 _SPACE = " \t\r\f\v"  # ASCII white space: strip() alone would also remove U+00A0, U+3000, ...
 _ID_MAX = 99_999_999  # QRG: ids are integers 0 < ID < 100,000,000
 _INT_MAX = 2**31 - 1  # other integers: 32-bit
@@ -174,53 +174,66 @@ class _Raw:
         return Card(self.name, values, self.file, self.line, fields)
 
 
-def _logical_cards(text: str, file: str) -> list[_Raw]:
-    lines = _LINE_END.split(text.removeprefix("\ufeff"))
-    start = next(
-        (i + 1 for i, t in enumerate(lines) if _BEGIN_BULK.match(t.split("$", 1)[0].upper())), 0
-    )
+def _logical_cards(lines: Iterable[tuple[str, int, str]]) -> list[_Raw]:
+    """Cards of the bulk-data lines ``(file, line number, text)`` (INCLUDE already expanded,
+    ENDDATA cut off); a card lies in one file. Text in field 10 with no continuation line
+    after it is a comment, as in Nastran: a ``UserWarning`` names it (the first three, then
+    one for the rest). DEQATN (an equation
+    in free form, QRG DEQATN) is kept as a card without fields, its continuation lines
+    (those not starting with a letter) skipped."""
     cards: list[_Raw] = []
-    previous: _Line | None = None
-    for number in range(start + 1, len(lines) + 1):
-        text = lines[number - 1]
-        head = text.split("$", 1)[0].upper()
-        if _ENDDATA.match(head):
-            break
-        if _INCLUDE.match(head):
-            raise BulkDataError(f"{_where(file, number, 'INCLUDE')}: INCLUDE is not supported; merge the files")
+    comments: list[str] = []
+    previous: tuple[str, _Line] | None = None
+    for file, number, text in lines:
+        if cards and cards[-1].name == "DEQATN" and not text[:1].isalpha():
+            continue  # the equation's continuation lines
+        if _DEQATN.match(text):
+            cards.append(_Raw(file, "DEQATN", number))
+            previous = None
+            continue
         line = _split(file, number, text, cards[-1].name if cards else None)
         if line is None:
             continue
         continuation = not line.first or line.first[0] in "+*"
-        if previous is not None and previous.last and not continuation:
-            raise BulkDataError(
-                f"{_where(file, previous.number, cards[-1].name, cards[-1].text(0) or None, 10)}: "
-                f"continuation marker {previous.last!r} but line {number} does not continue the card"
-            )
+        if previous is not None and previous[1].last and not continuation:
+            comments.append(_field10_comment(cards[-1], *previous))
         if continuation:
             if not cards:
-                where = _where(file, number, line.first or "(blank)")
-                raise BulkDataError(f"{where}: continuation line with no card before it")
-            mine, theirs = line.first[1:], previous.last.lstrip("+*") if previous else ""
-            if mine and theirs and mine != theirs.upper():
+                raise BulkDataError(f"{_where(file, number, line.first or '(blank)')}: continuation line with no card before it")
+            card = cards[-1]
+            if file != card.file:
                 raise BulkDataError(
-                    f"{_where(file, number, cards[-1].name, cards[-1].text(0) or None, 1)}: continuation "
-                    f"marker {line.first!r} does not match {previous.last!r} on line {previous.number}"
+                    f"{_where(file, number, card.name, card.text(0) or None, 1)}: continuation of the card at "
+                    f"{card.file}:{card.line}: a card must end in the file where it starts"
                 )
-            cards[-1].add(line)
+            mine, theirs = line.first[1:], previous[1].last.lstrip("+*") if previous else ""
+            if mine and theirs and mine != theirs.upper():
+                comments.append(
+                    f"{_where(file, number, card.name, card.text(0) or None, 1)}: continuation marker "
+                    f"{line.first!r} does not match {previous[1].last!r} on line {previous[1].number}: the line "
+                    "continues the card above it (as Nastran reads consecutive lines)"
+                )
+            card.add(line)
         else:
             name = line.first.rstrip("*").strip()
             if not _NAME.fullmatch(name):
                 raise BulkDataError(f"{_where(file, number, line.first)}: field 1 is not a card name")
             cards.append(_Raw(file, name, number))
             cards[-1].add(line)
-        previous = line
-    if previous is not None and previous.last:
-        raise BulkDataError(
-            f"{_where(file, previous.number, cards[-1].name, cards[-1].text(0) or None, 10)}: "
-            f"continuation marker {previous.last!r} but the data ends here"
-        )
+        previous = (file, line)
+    if previous is not None and previous[1].last:
+        comments.append(_field10_comment(cards[-1], *previous))
+    for message in comments[:3]:
+        warnings.warn(message, UserWarning, stacklevel=3)
+    if len(comments) > 3:
+        warnings.warn(f"{len(comments) - 3} more notes on continuation fields (field 10 text taken as a comment, "
+                      f"markers that do not match), the last: {comments[-1]}", UserWarning, stacklevel=3)
     return cards
+
+
+def _field10_comment(card: _Raw, file: str, line: _Line) -> str:
+    return (f"{_where(file, line.number, card.name, card.text(0) or None, 10)}: text {line.last!r} with no "
+            "continuation line after it is taken as a comment (as Nastran does)")
 
 
 # ---------------------------------------------------------------------------------------
