@@ -1,20 +1,23 @@
-"""Materials and cross sections of bulk data: MAT1, MAT2, MAT8, PBAR, PBARL, PBEAM, PROD.
+"""Materials and cross sections of bulk data: MAT1, MAT2, MAT8, PBAR, PBARL, PBEAM, PBEAML, PROD.
 
 One material table of MAT1, MAT2 and MAT8 (the last two checked in
 :mod:`jaxfem._shell_build`; beams and rods need MAT1). MAT1 completes E, G, NU from two
 of them (MSC QRG, MAT1 remarks), with −1 < NU ≤ 0.5, E > 0, G ≥ 0 and G > 0 where it is
-used (torsion, shells); a PBARL section (BAR,
-ROD, TUBE, BOX) gets A, I1, I2, J, K1, K2 from its dimensions (rectangle torsion: Roark
-table 10.7; box: Bredt's formula), finite; PBEAM is a constant section (end A); every value is
-checked. Tables are sorted by id, with the map id → row that the elements use.
+used (torsion, shells). PBARL and PBEAML sections get A, I1, I2, J, K1, K2 from their
+dimensions through Nastran's section library (:mod:`jaxfem._section_library`), finite, in
+principal axes; a tapered PBEAM or PBEAML is averaged along the element (with a warning);
+every value is checked. Tables are sorted by id, with the map id → row that the elements use.
 """
 
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 
 from ._grids import _by_id, _f64, _ints
 from ._model import MAT1, MAT2, MAT8, BeamSections, Materials, RodSections
+from ._section_library import DIMENSIONS, LIMITS, TYPES, principal, section
 from ._shell_build import _mat2_row, _mat8_row
 from .io import BulkData, Card
 
@@ -107,106 +110,161 @@ def _check_shell_shear(bulk: BulkData, materials: Materials, mat_rows: dict[int,
                                       "give G or NU on the MAT1")
 
 
-def _rectangle_torsion(a: float, b: float) -> float:
-    """Torsion constant of a solid a × b rectangle, Roark (7th ed.) table 10.7 case 4:
-    J = l s³ [1/3 − 0.21 (s/l)(1 − s⁴ / (12 l⁴))], l = long side, s = short side."""
-    l, s = max(a, b), min(a, b)
-    return l * s**3 * (1.0 / 3.0 - 0.21 * s / l * (1.0 - s**4 / (12.0 * l**4)))
-
-
-def _pbarl_section(card: Card) -> tuple[float, float, float, float, float, float]:
-    """(A, I1, I2, J, K1, K2) of a PBARL section [m², m⁴, m⁴, m⁴, -, -].
-
-    Axes as in the QRG PBARL figures: element y vertical, z horizontal; I1 = ∫y² dA
-    (plane 1, about z), I2 = ∫z² dA; K1 for shear along y, K2 along z.
-
-    - BAR: DIM1 = width along z, DIM2 = height along y. I1 = DIM1·DIM2³/12,
-      I2 = DIM2·DIM1³/12, J of a rectangle (Roark), K1 = K2 = 5/6.
-    - ROD: DIM1 = radius r. I1 = I2 = πr⁴/4, J = πr⁴/2, K1 = K2 = 0.9 (solid circle).
-    - TUBE: DIM1 = outer radius, DIM2 = inner radius. I = π(ro⁴ − ri⁴)/4, J = 2I,
-      K1 = K2 = 0.5 (thin-walled circular tube).
-    - BOX: DIM1 = width along z, DIM2 = height along y, DIM3 = thickness of the top and
-      bottom walls (normal to y), DIM4 = thickness of the side walls (normal to z).
-      J from Bredt's formula on the wall mid-lines,
-      J = 2 t3 t4 (DIM1 − t4)² (DIM2 − t3)² / (DIM1 t4 + DIM2 t3 − t4² − t3²);
-      K = web-area ratio: K1 = 2·DIM4·DIM2 / A (side walls carry shear along y),
-      K2 = 2·DIM3·DIM1 / A (top and bottom walls carry shear along z).
-
-    Dimensions must be > 0 and the properties finite (DIM1 = 1.E200 overflows r⁴).
-    """
-    dims = [card[f"DIM{k}"] for k in range(1, 5) if f"DIM{k}" in card.values]
-    for k, d in enumerate(dims, 1):
-        if d <= 0.0:
-            raise card.error(f"DIM{k}", f"dimensions must be > 0, got {d}")
-    try:
-        values = _pbarl_formulas(card, dims)
-    except OverflowError:  # float ** raises where float * gives inf
-        values = (np.inf,)
-    if not np.all(np.isfinite(values)):
-        k = int(np.argmax(dims)) + 1
-        raise card.error(f"DIM{k}", f"DIM{k} = {dims[k - 1]}: the section properties (A, I1, I2, J) overflow "
-                                    "a 64-bit real")
-    return values
-
-
-def _pbarl_formulas(card: Card, dims: list[float]) -> tuple[float, float, float, float, float, float]:
-    """The formulas of :func:`_pbarl_section`, per section type."""
-    kind = card["TYPE"]
-    if kind == "BAR":
-        b, h = dims
-        return b * h, b * h**3 / 12, h * b**3 / 12, _rectangle_torsion(b, h), 5 / 6, 5 / 6
-    if kind == "ROD":
-        (r,) = dims
-        i = np.pi * r**4 / 4
-        return np.pi * r**2, i, i, 2 * i, 0.9, 0.9
-    if kind == "TUBE":
-        ro, ri = dims
-        if ri >= ro:
-            raise card.error("DIM2", f"inner radius {ri} must be smaller than outer radius {ro}")
-        i = np.pi * (ro**4 - ri**4) / 4
-        return np.pi * (ro**2 - ri**2), i, i, 2 * i, 0.5, 0.5
-    b, h, t3, t4 = dims  # BOX
-    if 2 * t4 >= b or 2 * t3 >= h:
-        raise card.error("DIM3", f"walls too thick for the box: need 2·DIM4 < DIM1 and 2·DIM3 < DIM2, got {dims}")
-    bi, hi = b - 2 * t4, h - 2 * t3
-    area = b * h - bi * hi
-    j = 2 * t3 * t4 * (b - t4) ** 2 * (h - t3) ** 2 / (b * t4 + h * t3 - t4**2 - t3**2)
-    return area, (b * h**3 - bi * hi**3) / 12, (h * b**3 - hi * bi**3) / 12, j, 2 * t4 * h / area, 2 * t3 * b / area
+_TAPER_RTOL = 1e-5  # stations equal to 5 significant digits: a constant section
+_STATION = ("A", "I1", "I2", "I12", "J", "NSM")  # a PBEAM station after its X/XB
+_ROW = ("A", "I1", "I2", "J", "K1", "K2", "nsm", "angle")  # the BeamSections values of a card
 
 
 def _beam_sections(
     bulk: BulkData, mat_rows: dict[int, int], table: Materials
 ) -> tuple[BeamSections, dict[int, int]]:
-    """PBAR (blank K1/K2 = 0: no shear flexibility), PBARL (see :func:`_pbarl_section`)
-    and PBEAM (constant section, end A; K1/K2 default 1.0)."""
-    cards = _by_id(bulk["PBAR"] + bulk["PBARL"] + bulk["PBEAM"])
-    materials, values = [], []
+    """PBAR (blank K1/K2 = 0: no shear flexibility), PBEAM (K1/K2 default 1.0; stations:
+    :func:`_pbeam_values`), PBARL and PBEAML (:func:`_library_values`); a tapered section
+    (stations differing beyond 5 significant digits) gives a ``UserWarning`` naming it."""
+    cards = _by_id(bulk["PBAR"] + bulk["PBARL"] + bulk["PBEAM"] + bulk["PBEAML"])
+    materials, values, types, dims = [], [], [], []
     for card in cards:
-        if card.name == "PBARL":
-            area, i1, i2, j, k1, k2 = _pbarl_section(card)
-            key_a = "DIM1"
+        library = card.name in ("PBARL", "PBEAML")
+        if library:
+            row, code, dim, tapered = _library_values(card)
         else:
-            if card["I12"] != 0.0:
-                raise card.error("I12", f"I12 = {card['I12']}: unsymmetric sections (I12 != 0) are not supported")
-            area, i1, i2, j, k1, k2 = (card[k] for k in ("A", "I1", "I2", "J", "K1", "K2"))
-            key_a = "A"
-        if area <= 0.0:
-            raise card.error(key_a, f"area must be > 0, got {area}")
-        for key, value in (("I1", i1), ("I2", i2), ("J", j), ("K1", k1), ("K2", k2)):
+            (row, tapered), code, dim = _pbeam_values(card), -1, ()
+        if tapered:
+            warnings.warn(f"{card.where()}: tapered {card.name}: its section properties are averaged along "
+                          "the element (integral mean over X/XB), an approximation of Nastran's tapered beam",
+                          UserWarning, stacklevel=3)
+        if row[0] <= 0.0:
+            raise card.error("DIM1" if library else "A", f"area must be > 0, got {row[0]}")
+        for key, value in zip(_ROW[1:6], row[1:6]):
             if value < 0.0:
                 raise card.error(key, f"{key} must be >= 0, got {value}")
-        if card["NSM"] < 0.0:
-            raise card.error("NSM", f"negative non-structural mass {card['NSM']}")
-        materials.append(_material(card, mat_rows, table, j))
-        values.append((area, i1, i2, j, k1, k2, card["NSM"]))
-    columns = np.asarray(values, dtype=np.float64).reshape(-1, 7).T
+        if row[6] < 0.0:
+            raise card.error("NSM", f"negative non-structural mass {row[6]}")
+        materials.append(_material(card, mat_rows, table, row[3]))
+        values.append(row)
+        types.append(code)
+        dims.append(dim)
+    width = max(map(len, dims), default=0)
+    columns = np.asarray(values, dtype=np.float64).reshape(-1, len(_ROW)).T
     ids = _ints([c.id for c in cards])
     sections = BeamSections(
         ids=ids,
         material=_ints(materials),
-        **{k: _f64(v) for k, v in zip(("A", "I1", "I2", "J", "K1", "K2", "nsm"), columns)},
+        **{k: _f64(v) for k, v in zip(_ROW, columns)},
+        section_type=_ints(types),
+        dims=_f64(np.reshape([list(d) + [0.0] * (width - len(d)) for d in dims], (len(cards), width))),
     )
     return sections, {int(p): i for i, p in enumerate(ids)}
+
+
+def _pbeam_values(card: Card) -> tuple[tuple, bool]:
+    """The ``_ROW`` values of a PBAR or PBEAM, and whether tapered. PBEAM ``STATIONS``
+    (X/XB, A, I1, I2, I12, J, NSM; blank: the end-A value) follow end A; a tapered
+    PBEAM takes the integral mean of each value (:func:`_mean`). A section with I12 ≠ 0
+    (I1·I2 > I12², MSC QRG PBAR remark 5) is stored in its principal axes as a PBARL's,
+    a PBAR's K1, K2 then ignored (remark 4)."""
+    end_a = tuple(card[k] for k in _STATION)
+    stations = [(0.0, *end_a)] + [(s[0], *(a if v is None else v for v, a in zip(s[1:], end_a)))
+                                  for s in card.values.get("STATIONS", ())]
+    for station in stations:
+        if station[2] * station[3] <= station[4] ** 2 and station[4] != 0.0:
+            raise card.error("I12", f"I1·I2 must exceed I12² (got I1 = {station[2]}, I2 = {station[3]}, "
+                                    f"I12 = {station[4]})")
+        if station[6] < 0.0:
+            raise card.error("NSM", f"negative non-structural mass {station[6]}")
+    tapered = _tapered([s[1:] for s in stations])
+    a, i1, i2, i12, j, nsm = _mean(card, stations) if tapered else end_a
+    k1, k2, angle = card["K1"], card["K2"], 0.0
+    if abs(i12) > 1e-12 * (i1 + i2):
+        k1, k2 = (0.0, 0.0) if card.name == "PBAR" else (k1, k2)
+        angle, i1, i2, k1, k2 = (float(v) for v in principal(i1, i2, i12, k1, k2))
+    return (a, i1, i2, j, k1, k2, nsm, angle), tapered
+
+
+def _library_values(card: Card) -> tuple[tuple, int, tuple, bool]:
+    """``(row, type code, dims, tapered)`` of a PBARL or PBEAML (MSC Nastran QRG, PBARL and
+    PBEAML), from :mod:`jaxfem._section_library`.
+
+    PBEAML: ``DIMS`` per station (end A first, end B last), ``XXB`` their X/XB, ``NSM`` per
+    station; tapered, the properties' integral mean (:func:`_mean`) with code −1 and no
+    dims (not a ``dim`` parameter). The section is stored in its principal axes
+    (:func:`jaxfem._section_library.principal`); a PBARL with I12 ≠ 0 has K1 = K2 = 0, as
+    Nastran ignores K1, K2 of a PBAR with I12 ≠ 0 (MSC Nastran QRG, PBAR remark 4).
+    """
+    name = card["TYPE"]
+    stations = _station_dims(card)
+    nsm = card["NSM"] if card.name == "PBEAML" else (card["NSM"],)
+    xs = card["XXB"] if card.name == "PBEAML" else (0.0,)
+    if not len(xs) == len(nsm) == len(stations):
+        raise card.error("XXB", f"{len(stations)} stations of dimensions, {len(xs)} X/XB and {len(nsm)} NSM")
+    if min(nsm) < 0.0:
+        raise card.error("NSM", f"negative non-structural mass {min(nsm)}")
+    tapered = _tapered([(*d, m) for d, m in zip(stations, nsm)])
+    props = [(*_library(card, d), m) for d, m in zip(stations, nsm)]
+    a, i1, i2, i12, j, k1, k2, mass = _mean(card, [(x, *p) for x, p in zip(xs, props)]) if tapered else props[0]
+    if abs(i12) <= 1e-12 * (i1 + i2):
+        angle = 0.0
+    else:
+        k1, k2 = (0.0, 0.0) if card.name == "PBARL" else (k1, k2)
+        angle, i1, i2, k1, k2 = (float(v) for v in principal(i1, i2, i12, k1, k2))
+    row = (a, i1, i2, j, k1, k2, mass, angle)
+    return (row, -1, (), True) if tapered else (row, TYPES.index(name), stations[0], False)
+
+
+def _station_dims(card: Card) -> list[tuple[float, ...]]:
+    """DIM1..DIMn of each station (a PBARL has one), each > 0 and drawing the shape
+    (:data:`jaxfem._section_library.LIMITS`)."""
+    name, n = card["TYPE"], DIMENSIONS[card["TYPE"]]
+    if card.name == "PBEAML":
+        stations = [tuple(d) for d in card["DIMS"]]
+    else:
+        stations = [tuple(card[f"DIM{k}"] for k in range(1, n + 1))]
+    for dims in stations:
+        if len(dims) != n:
+            raise card.error("DIMS", f"TYPE {name} has {n} dimensions, got {len(dims)}")
+        for k, d in enumerate(dims, 1):
+            if d <= 0.0:
+                raise card.error(f"DIM{k}", f"dimensions must be > 0, got {d}")
+        if name in LIMITS and not LIMITS[name][2](dims):
+            raise card.error(LIMITS[name][0], LIMITS[name][1].format(d=list(dims)) + f" (TYPE {name})")
+    return stations
+
+
+def _library(card: Card, dims: tuple[float, ...]) -> tuple[float, ...]:
+    """``(A, I1, I2, I12, J, K1, K2)`` of one station, finite (a located error where the
+    dimensions overflow or underflow them: DIM1 = 1.E200 overflows r⁴)."""
+    try:
+        values = tuple(float(v) for v in section(card["TYPE"], tuple(float(d) for d in dims)))
+    except (OverflowError, ZeroDivisionError):  # float ** raises where float * gives inf
+        values = (np.inf,)
+    if not np.all(np.isfinite(values)):
+        k = int(np.argmax(np.abs(np.log(dims)))) + 1
+        raise card.error(f"DIM{k}", f"DIM{k} = {dims[k - 1]}: the section properties (A, I1, I2, J) overflow "
+                                    "or underflow a 64-bit real")
+    return values
+
+
+def _tapered(stations: list[tuple]) -> bool:
+    """Whether station values differ from end A's beyond 5 significant digits."""
+    return not np.allclose(stations, stations[0], rtol=_TAPER_RTOL, atol=0.0)
+
+
+def _mean(card: Card, stations: list[tuple]) -> tuple[float, ...]:
+    """The integral mean over X/XB of the values of ``stations`` ``(X/XB, values...)``,
+    linear between stations (trapezoidal rule), X/XB ascending in [0, 1]."""
+    table = np.asarray(stations, dtype=np.float64)
+    x = table[:, 0]
+    if x[0] != 0.0 or x[-1] > 1.0 or np.any(np.diff(x) < 0.0):
+        raise card.error("XXB", f"station positions X/XB must ascend from 0 to at most 1, got {x.tolist()}")
+    if x[-1] == 0.0:
+        return tuple(table[-1, 1:])
+    return tuple(np.trapezoid(table[:, 1:], x, axis=0) / x[-1])
+
+
+def _section_angle(card: Card) -> float:
+    """The principal-axis angle θ [rad] of a beam property card, by which its elements' v
+    turns (see :func:`jaxfem._build._beams`): 0 but for a section with I12 ≠ 0."""
+    return (_library_values(card) if card.name in ("PBARL", "PBEAML") else _pbeam_values(card))[0][7]
 
 
 def _rod_sections(

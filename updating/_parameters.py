@@ -53,10 +53,15 @@ def _file_bounds(v):
     return schema.bounds(v, ">")
 
 
+def _dim_index(v):
+    """The DIM index of kind ``dim``: an integer ≥ 1, or None (the other kinds)."""
+    return None if v is None else schema.integer(1)(v)
+
+
 _PARAMETER_SCHEMA = {
     "name": schema.name, "kind": schema.choice(*KINDS), "pids": schema.integers("property ids", nonempty=False),
     "eids": schema.integers("element ids", nonempty=False), "nodes": schema.integers("grid ids", nonempty=False),
-    "bounds": schema.bounds,
+    "bounds": schema.bounds, "dim": _dim_index,
 }
 
 
@@ -67,7 +72,9 @@ class Parameter:
     ``kind``: ``stiffness`` | ``mass`` (element groups, eq. 3.1) or a physical value
     ``E``, ``G`` (MAT1), ``rho`` (any material) of the materials of the target
     properties, ``A``, ``I1``, ``I2``, ``J`` (beam and rod sections), ``k`` (springs and
-    bushes), ``m`` (CONM2 masses), ``a`` (the coefficient of the model's frequency law,
+    bushes), ``m`` (CONM2 masses), ``dim`` (the dimension DIMn, ``n`` = ``dim``, of the
+    PBARL/PBEAML sections of ``pids``: A, I1, I2, J, K1, K2 recomputed through Nastran's
+    section library), ``a`` (the coefficient of the model's frequency law,
     :class:`jaxfem.Viscoelastic`, additive: ``a = a₀ + α``; its pids name the layer).
     Shells (PSHELL/PCOMP pids): ``membrane``, ``bending``, ``transverse_shear`` (the
     laminate's A, D, S), ``E1``, ``E2``, ``G12``, ``G1Z``, ``G2Z``, ``NU12`` (their MAT8
@@ -81,9 +88,9 @@ class Parameter:
 
     Checked on construction (:class:`FieldError` naming the key): ``name`` a non-empty
     string, ``kind`` one of :data:`KINDS`, ids integers ≥ 1 (a bool or 1.7 is refused,
-    not truncated), ``bounds`` two finite numbers, −1 ≤ lower < upper, and the targets
-    the kind takes. Whether the targets hold what the kind scales is checked against a
-    model by :func:`parameterise`.
+    not truncated), ``bounds`` two finite numbers, −1 ≤ lower < upper, ``dim`` an integer
+    ≥ 1 given with kind ``dim`` only, and the targets the kind takes. Whether the targets
+    hold what the kind scales is checked against a model by :func:`parameterise`.
     """
 
     name: str
@@ -92,6 +99,7 @@ class Parameter:
     eids: tuple[int, ...] = ()
     nodes: tuple[int, ...] = ()
     bounds: tuple[float, float] = (-0.5, 1.0)
+    dim: int | None = None
 
     def __post_init__(self):
         owner = f"parameter {self.name!r}"
@@ -106,6 +114,9 @@ class Parameter:
 
         if not (self.pids or self.eids or self.nodes):
             fail("pids", "no target: give pids, eids or nodes")
+        if (self.kind == "dim") != (self.dim is not None):
+            fail("dim", "kind dim needs dim = n, the index of the section dimension DIMn" if self.kind == "dim"
+                 else f"dim = {self.dim} is only for kind dim, not kind {self.kind}")
         if self.nodes and self.kind not in ("k", "m"):
             fail("nodes", f"nodes = [...] is only for kinds k and m, not kind {self.kind}")
         if self.kind == "m" and self.pids:

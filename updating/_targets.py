@@ -21,7 +21,7 @@ from jaxfem import MAT1, MAT2, MAT8, Model
 if TYPE_CHECKING:
     from ._parameters import Parameter
 
-KINDS = ("stiffness", "mass", "E", "G", "rho", "A", "I1", "I2", "J", "k", "m", "a",
+KINDS = ("stiffness", "mass", "E", "G", "rho", "A", "I1", "I2", "J", "dim", "k", "m", "a",
          "membrane", "bending", "transverse_shear", "E1", "E2", "G12", "G1Z", "G2Z", "NU12", "t", "nsm", "theta")
 # Material kinds: the Materials column scaled and the material types (MAT1/2/8) it acts on.
 _MATERIAL = {
@@ -33,7 +33,7 @@ _SECTION = {"A", "I1", "I2", "J"}
 # Shell section kinds: the ShellSections factor each scales (A, D, S of the laminate).
 _SHELL_FACTOR = {"membrane": "membrane", "bending": "bending", "transverse_shear": "shear"}
 _SHELL = set(_SHELL_FACTOR) | {"t", "theta"}
-_PIDS_ONLY = set(_MATERIAL) | _SECTION | _SHELL | {"nsm", "a"}
+_PIDS_ONLY = set(_MATERIAL) | _SECTION | _SHELL | {"nsm", "a", "dim"}
 # Kinds that also take shell element ids: the element's own factor (Shells.parts) or NSM (Shells.nsm).
 _SHELL_ELEMENT = {"membrane": 0, "bending": 1, "transverse_shear": 2, "nsm": None}
 # Where sections name their material rows: (section table, column).
@@ -78,6 +78,8 @@ def _scale_physical(model: Model, p: Parameter, factor) -> Model:
             model = eqx.tree_at(lambda m: getattr(m.rod_sections, p.kind), model,
                                 _scale_rows(getattr(model.rod_sections, p.kind), rows, factor))
         return model
+    if p.kind == "dim":
+        return _scale_dimension(model, p, factor)
     if p.kind in _SHELL:
         sec = model.shell_sections
         rows = _rows(sec.ids, p.pids)
@@ -104,13 +106,30 @@ def _scale_physical(model: Model, p: Parameter, factor) -> Model:
         return eqx.tree_at(lambda m: m.viscoelastic.a, model, model.viscoelastic.a + (factor - 1.0))
     if p.kind == "k":
         s, b = model.springs, model.bushes
-        srows = _target_rows(model, s, p)
-        brows = _target_rows(model, b, p)
+        srows, brows = _target_rows(model, s, p), _target_rows(model, b, p)
         model = eqx.tree_at(lambda m: m.springs.k, model, _scale_rows(s.k, srows, factor))
         return eqx.tree_at(lambda m: m.bushes.k, model, _scale_rows(b.k, brows, factor))
     c = model.masses  # kind "m"
     rows = np.union1d(_rows(c.ids, p.eids), np.flatnonzero(np.isin(model.node_ids[c.nodes], p.nodes)))
     return eqx.tree_at(lambda m: m.masses.m, model, _scale_rows(c.m, rows, factor))
+
+
+def _scale_dimension(model: Model, p: Parameter, factor) -> Model:
+    """DIM ``p.dim`` of the PBARL/PBEAML sections of ``p.pids`` times ``factor``: their A, I1,
+    I2, J, K1, K2 and principal axes recomputed through Nastran's section library
+    (:meth:`jaxfem._model.BeamSections.with_dims`), and the v of their elements turned
+    about each element's axis x by the turn of the principal axes θ (Rodrigues:
+    v cos θ + (x × v) sin θ + x (x·v)(1 − cos θ)). Pure JAX."""
+    sec, b = model.beam_sections, model.beams
+    rows = _rows(sec.ids, p.pids)
+    sections, turn = sec.with_dims(rows, sec.dims[rows].at[:, p.dim - 1].multiply(factor))
+    theta = jnp.zeros(len(sec.ids)).at[rows].set(turn)[b.section][:, None]
+    xyz = jnp.asarray(model.xyz)
+    x = xyz[b.nodes[:, 1]] + b.offsets[:, 1] - xyz[b.nodes[:, 0]] - b.offsets[:, 0]
+    x = x / jnp.linalg.norm(x, axis=1, keepdims=True)
+    v = b.v * jnp.cos(theta) + jnp.cross(x, b.v) * jnp.sin(theta) \
+        + x * jnp.sum(x * b.v, axis=1, keepdims=True) * (1.0 - jnp.cos(theta))
+    return eqx.tree_at(lambda m: (m.beam_sections, m.beams.v), model, (sections, v))
 
 
 def _section_materials(model: Model, pids: Sequence[int]) -> dict[int, np.ndarray]:
@@ -183,6 +202,8 @@ def _block_problem(model: Model, p: Parameter) -> str | None:
             if bad:
                 return f"{key} {bad} {what}: nothing for kind m (CONM2 mass) to scale"
         return None
+    if p.kind == "dim":
+        return _dimension_problem(model, p)
     if p.kind in _SECTION:
         rods = p.kind in ("A", "J")
         pids = _missing(p.pids, cat([model.beam_sections.ids] + ([model.rod_sections.ids] if rods else [])))
@@ -193,10 +214,26 @@ def _block_problem(model: Model, p: Parameter) -> str | None:
     return None
 
 
+def _dimension_problem(model: Model, p: Parameter) -> str | None:
+    """Why the targets of a ``dim`` parameter are not constant PBARL/PBEAML sections with a
+    DIM ``p.dim`` (None: fine)."""
+    sec = model.beam_sections
+    pids = _missing(p.pids, sec.ids[np.asarray(sec.section_type) >= 0])
+    if pids:
+        return (f"pids {pids} are not PBARL or constant PBEAML properties: kind dim scales a dimension of "
+                "Nastran's beam-section library")
+    dims = np.asarray(sec.dims)
+    rows = _rows(sec.ids, p.pids)
+    short = _Ids(int(sec.ids[r]) for r in rows if p.dim > dims.shape[1] or dims[r, p.dim - 1] <= 0.0)
+    if short:
+        return f"pids {short} have no DIM{p.dim} (their section TYPE has fewer dimensions)"
+    return None
+
+
 def _target_problem(model: Model, p: Parameter) -> str | None:
     """Why the targets of ``p`` have nothing that it scales (None: fine)."""
     problem = _block_problem(model, p)
-    if problem or p.kind in ("stiffness", "mass", "k", "m") or p.kind in _SECTION:
+    if problem or p.kind in ("stiffness", "mass", "k", "m", "dim") or p.kind in _SECTION:
         return problem
     if p.kind in _SHELL_ELEMENT and p.eids:
         shells = np.concatenate([model.quads.ids, model.trias.ids])
@@ -328,4 +365,4 @@ def _column(model: Model, p: Parameter) -> tuple:
                                             np.flatnonzero(np.isin(model.node_ids[c.nodes], p.nodes))).tolist())
     if p.kind == "a":  # one coefficient of the frequency law, whatever the pids
         return (p.kind,)
-    return p.kind, frozenset(p.pids), frozenset(p.eids)
+    return p.kind, frozenset(p.pids), frozenset(p.eids), p.dim
