@@ -44,6 +44,7 @@ from ._sensors import locate_sensors as locate_sensors
 from ._sensors import sensors_at_grids as sensors_at_grids
 from ._model import StructuralDamping as StructuralDamping
 from ._structural_damping import damping_matrix as damping_matrix
+from ._viscous import viscous_damping as viscous_damping
 from ._structural_damping import element_strain_energies as element_strain_energies
 from ._structural_damping import modal_loss_factors as modal_loss_factors
 from ._assembly import node_transform as node_transform
@@ -71,3 +72,7 @@ from ._structural_damping import with_k_scale as with_k_scale
 from ._reduction import guyan as guyan
 from ._reduction import serep as serep
 from ._modes import SOLVERS as EIGENSOLVERS
+from ._mass_properties import MassProperties as MassProperties
+from ._mass_properties import mass_properties as mass_properties
+from ._units import UNIT_SYSTEMS as UNIT_SYSTEMS
+from ._units import UnitSystem as UnitSystem

@@ -21,6 +21,7 @@ from ._eager import compiled_when_eager
 from ._matrix import ElementMatrix
 from ._model import COMPONENTS, DofMap, Model, check_float64
 from .elements import (
+    beam_lumped_torsion,
     beam_mass,
     beam_stiffness,
     bush_stiffness,
@@ -55,18 +56,31 @@ def node_transform(model: Model, nodes: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 
 
-def _spring_transform(model: Model) -> tuple[np.ndarray, np.ndarray]:
-    """T (n, 2, 2w) and indices (n, 2w) for scalar springs; node -1 is ground."""
-    s = model.springs
-    cols = _columns(model, s.nodes[s.nodes >= 0])
-    n, w = len(s.ids), len(cols)
-    t = np.zeros((n, 2, 2 * w))
-    idx = np.full((n, 2 * w), model.n_dof, dtype=np.int64)
-    for a in range(2):
-        grounded = s.nodes[:, a] < 0
-        node = np.where(grounded, 0, s.nodes[:, a])
-        comp = np.where(grounded, 1, s.components[:, a]) - 1
-        t[:, a, a * w : (a + 1) * w] = np.where(grounded[:, None], 0.0, model.dofs.coef[node, comp][:, cols])
+def global_coef(model: Model, nodes: np.ndarray, components: np.ndarray) -> np.ndarray:
+    """Rows ``coef`` of the global (CD) component ``components`` (1..6) of grid rows
+    ``nodes``: u_global = diag(R, R)ᵀ u_basic with R the grid's CD axes."""
+    coef = model.dofs.coef[nodes]  # (..., 6, w) basic components
+    if model.dofs.cd is None:
+        return np.take_along_axis(coef, (components - 1)[..., None, None], axis=-2)[..., 0, :]
+    r = model.dofs.cd[nodes]  # (..., 3, 3) columns: CD axes in basic
+    c = components - 1
+    axis = np.take_along_axis(r, (c % 3)[..., None, None], axis=-1)[..., 0]  # (..., 3)
+    half = np.where((c < 3)[..., None, None], coef[..., :3, :], coef[..., 3:, :])
+    return np.einsum("...i,...iw->...w", axis, half)
+
+
+def scalar_transform(model: Model, nodes: np.ndarray, components: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """T (n, d, d·w) and indices (n, d·w) for elements on single DoFs: ``nodes`` (n, d)
+    grid rows (-1: ground) and their global ``components`` (n, d) (springs, scalar masses)."""
+    cols = _columns(model, nodes[nodes >= 0])
+    (n, d), w = nodes.shape, len(cols)
+    t = np.zeros((n, d, d * w))
+    idx = np.full((n, d * w), model.n_dof, dtype=np.int64)
+    for a in range(d):
+        grounded = nodes[:, a] < 0
+        node = np.where(grounded, 0, nodes[:, a])
+        comp = np.where(grounded, 1, components[:, a])
+        t[:, a, a * w : (a + 1) * w] = np.where(grounded[:, None], 0.0, global_coef(model, node, comp)[:, cols])
         idx[:, a * w : (a + 1) * w] = np.where(grounded[:, None], model.n_dof, model.dofs.index[node][:, cols])
     return t, idx
 
@@ -93,6 +107,9 @@ def _element_blocks(model: Model):
             xa, xb, b.v, mat.rho[m], sec.A[s], sec.nsm[s], sec.I1[s], sec.I2[s], sec.K1[s], sec.K2[s],
             mat.E[m], mat.G[m],
         )
+        if lumped and b.cbeam is not None and b.cbeam.any():
+            torsion = jax.vmap(beam_lumped_torsion)(xa, xb, mat.rho[m], sec.I1[s], sec.I2[s])
+            me = me + b.cbeam.astype(np.float64)[:, None, None] * torsion
         ke = _reduce(t, ke) * b.k_scale[:, None, None]
         me = _reduce(t, me) * b.m_scale[:, None, None]
         out["beams"] = (b.nodes, ke, me)
@@ -121,13 +138,28 @@ def _element_blocks(model: Model):
         c = model.masses
         me = jax.vmap(conm2_mass)(c.m, c.offset, c.inertia) * c.m_scale[:, None, None]
         out["masses"] = (c.nodes[:, None], None, me)
+    if model.conm1 is not None:
+        c = model.conm1
+        out["conm1"] = (c.nodes[:, None], None, c.m * c.m_scale[:, None, None])
     return out
 
 
-def _spring_block(model: Model):
-    s = model.springs
-    unit = jnp.array([[1.0, -1.0], [-1.0, 1.0]])
-    return (s.k * s.k_scale)[:, None, None] * unit
+_UNIT = np.array([[1.0, -1.0], [-1.0, 1.0]])
+
+
+def _scalar_blocks(model: Model):
+    """Blocks on single DoFs: dict name -> (nodes, components, K_e, M_e) in global components."""
+    out = {}
+    if len(model.springs.ids):
+        s = model.springs
+        out["springs"] = (s.nodes, s.components, (s.k * s.k_scale)[:, None, None] * _UNIT, None)
+    if model.scalar_masses is not None:
+        s = model.scalar_masses
+        out["scalar_masses"] = (s.nodes, s.components, None, (s.m * s.m_scale)[:, None, None] * _UNIT)
+    if model.direct is not None:
+        d = model.direct
+        out["direct"] = (d.nodes[None], d.components[None], d.k[None], d.m[None])
+    return out
 
 
 @compiled_when_eager
@@ -149,10 +181,12 @@ def assemble(model: Model) -> tuple[ElementMatrix, ElementMatrix]:
         if me is not None:
             m_blocks.append(_reduce(t, me))
             m_idx.append(idx)
-    if len(model.springs.ids):
-        t, idx = _spring_transform(model)
-        k_blocks.append(_reduce(t, _spring_block(model)))
-        k_idx.append(idx)
+    for nodes, components, ke, me in _scalar_blocks(model).values():
+        t, idx = scalar_transform(model, nodes, components)
+        for blocks, indices, a in ((k_blocks, k_idx, ke), (m_blocks, m_idx, me)):
+            if a is not None:
+                blocks.append(_reduce(t, a))
+                indices.append(idx)
     n = model.n_dof
     none = np.zeros(0, np.int64)
     K = ElementMatrix(blocks=tuple(k_blocks), indices=tuple(k_idx), massless=none, size=n)
@@ -219,6 +253,7 @@ def finalize_dofs(model: Model) -> Model:
         massless=massless,
         auto_spc=dofs.labels[drop].reshape(-1, 2),
         n_dof=len(keep),
+        cd=dofs.cd,
     )
     if len(massless):
         _check_massless_stiffness(K, keep[massless], dofs.labels)

@@ -15,6 +15,7 @@ import numpy as np
 
 from ._grids import _by_id, _Grids, _ints
 from ._model import COMPONENTS, DofMap
+from ._rigid import rbar, rbe1, rrod
 from .io import BulkData, BulkDataError, Card
 
 _SINGULAR_RTOL = 1e-10  # RBE3: eigenvalue of the scaled GᵀWG below rtol·largest = singular
@@ -29,32 +30,57 @@ def _components(code: int) -> list[int]:
     return [int(d) for d in str(code)]
 
 
-def _selected(bulk: BulkData, names: tuple[str, ...], chosen: int | None, argument: str) -> int | None:
-    """The set id of the SPC or MPC cards to apply: ``chosen``, or the only one in the file."""
+def _selected(bulk: BulkData, names: tuple[str, ...], chosen: int | None, argument: str) -> set[int]:
+    """The set ids of the SPC or MPC cards to apply: ``chosen`` (from the case control or
+    the caller), or the only set in the file; an SPCADD/MPCADD set is the union of the
+    sets it lists (MSC QRG, SPCADD, MPCADD)."""
     cards = [c for name in names for c in bulk[name]]
-    sets = sorted({c["SID"] for c in cards})
+    adds = {c["SID"]: c for c in bulk[names[0] + "ADD"]}
+    sets = sorted({c["SID"] for c in cards} | set(adds))
     kind = names[0]
     if chosen is None and len(sets) > 1:
         first: dict[int, Card] = {}
-        for card in sorted(cards, key=lambda c: c.line):
+        for card in sorted(cards + list(adds.values()), key=lambda c: (c.file, c.line)):
             first.setdefault(card["SID"], card)
         where = ", ".join(f"{first[s].name} {s} at {first[s].file}:{first[s].line}" for s in sets)
-        raise first[sets[1]].error("SID", f"several {kind} sets {sets} ({where}); choose one with {argument} "
-                                          f"(--{argument.replace('_', '-')} on the command line)")
+        raise first[sets[1]].error("SID", f"several {kind} sets {sets} ({where}); choose one in the case control "
+                                          f"({kind} = n) or with {argument} (--{argument.replace('_', '-')})")
     if chosen is not None and chosen not in sets:
-        raise BulkDataError(f"{bulk.source}: {kind} set {chosen} ({argument}) is not in the file (sets: {sets})")
-    return chosen if chosen is not None else (sets[0] if sets else None)
+        raise BulkDataError(f"{bulk.source}: {kind} set {chosen} ({argument} or case control) is not in the "
+                            f"bulk data (sets: {sets})")
+    sid = chosen if chosen is not None else (sets[0] if sets else None)
+    if sid not in adds:
+        return set() if sid is None else {sid}
+    add = adds[sid]
+    for k, member in enumerate(add["S"], 1):
+        if member not in {c["SID"] for c in cards}:
+            raise add.error(f"S{k}", f"{kind} set {member} is not defined by any {' or '.join(names)} card")
+    return set(add["S"])
+
+
+def _component(grids: _Grids, card: Card, key: str, g: int, c: int) -> int:
+    """Component c of point g as stored: a scalar point's component 0 (or 1) is 1."""
+    if grids.row.get(g, -1) in grids.scalar_rows:
+        if c not in (0, 1):
+            raise card.error(key, f"point {g} is a scalar point (SPOINT): its component is 0 or blank, got {c}")
+        return 1
+    if c == 0:
+        raise card.error(key, f"grid {g} needs a component 1..6 (0 or blank is for scalar points), got {c}")
+    return c
 
 
 def _constraints(bulk: BulkData, grids: _Grids, spc_set: int | None) -> dict[tuple[int, int], Card]:
-    """(grid, component) -> constraining card: GRID PS and the selected SPC/SPC1 set."""
+    """(grid, component) -> constraining card: GRID PS, the selected SPC/SPC1 set, and
+    None for the components 2..6 that a scalar point does not have."""
     selected = _selected(bulk, ("SPC", "SPC1"), spc_set, "spc_set")
     fixed: dict[tuple[int, int], Card] = {}
     for card in grids.cards:
         for c in _components(card["PS"]) if card["PS"] else ():
             fixed[(card.id, c)] = card
+    for row in grids.scalar_rows:
+        fixed.update({(int(grids.ids[row]), c): None for c in range(2, COMPONENTS + 1)})
     for card in bulk["SPC"] + bulk["SPC1"]:
-        if card["SID"] != selected:
+        if card["SID"] not in selected:
             continue
         if card.name == "SPC" and card["D"] != 0.0:
             raise card.error("D", f"enforced displacement {card['D']} is not supported (D must be 0.0)")
@@ -62,7 +88,7 @@ def _constraints(bulk: BulkData, grids: _Grids, spc_set: int | None) -> dict[tup
             grids(card, "G")
         for g in (card["G"],) if card.name == "SPC" else grids.listed(card, "G"):
             for c in _components(card["C"]):
-                fixed[(g, c)] = card
+                fixed[(g, _component(grids, card, "C", g, c))] = card
     return fixed
 
 
@@ -71,14 +97,33 @@ def _cross_rows(r: np.ndarray) -> np.ndarray:
     return np.array([[0.0, r[2], -r[1]], [-r[2], 0.0, r[0]], [r[1], -r[0], 0.0]])
 
 
+def _rigid(r: np.ndarray) -> np.ndarray:
+    """G (6 × 6): basic motion [u; θ] of a point at offset r from a reference point moving
+    rigidly with [u_ref; θ_ref]: u = u_ref + θ_ref × r, θ = θ_ref."""
+    g = np.eye(6)
+    g[:3, 3:] = _cross_rows(r)
+    return g
+
+
+def _global_rigid(grids: _Grids, g: int, ref: int) -> np.ndarray:
+    """R6_gᵀ G R6_ref: the global (CD) components of grid ``g`` from those of grid ``ref``
+    when both move as one rigid body (R6 = diag(R, R), R the CD axes of the grid)."""
+    a, b = grids.row[g], grids.row[ref]
+    return _six(grids.axes(a)).T @ _rigid(grids.xyz[a] - grids.xyz[b]) @ _six(grids.axes(b))
+
+
+def _six(r: np.ndarray) -> np.ndarray:
+    out = np.zeros((6, 6))
+    out[:3, :3] = out[3:, 3:] = r
+    return out
+
+
 def _rbe2_terms(card: Card, grids: _Grids, g: int, c: int) -> list[_Term]:
-    """u_gc = u_mc + Σ_j S[c, j] θ_mj (translations, r = x_g − x_m), θ_gc = θ_mc."""
+    """u_gc = Σ_j A[c, j] u_mj with A = R6_gᵀ G(x_g − x_m) R6_m (:func:`_global_rigid`): in
+    basic axes u_g = u_m + θ_m × (x_g − x_m), θ_g = θ_m."""
     m = card["GN"]
-    terms: list[_Term] = [((m, c), 1.0, "GN")]
-    if c <= 3:
-        s = _cross_rows(grids.xyz[grids.row[g]] - grids.xyz[grids.row[m]])
-        terms += [((m, 4 + j), float(s[c - 1, j]), "GN") for j in range(3) if s[c - 1, j] != 0.0]
-    return terms
+    a = _global_rigid(grids, g, m)[c - 1]
+    return [((m, j + 1), float(a[j]), "GN") for j in range(6) if a[j] != 0.0]
 
 
 def _describe(v: np.ndarray, x_ref: np.ndarray) -> str:
@@ -98,24 +143,30 @@ def _describe(v: np.ndarray, x_ref: np.ndarray) -> str:
     return f"rotation about [{fmt(a)}] through ({fmt(x_ref + np.cross(a, t))})"  # u = θ × (x_ref − p)
 
 
-def rbe3_matrix(r: np.ndarray, components, weights) -> tuple[np.ndarray, np.ndarray]:
+def rbe3_matrix(r: np.ndarray, components, weights, axes=None) -> tuple[np.ndarray, np.ndarray]:
     """T (6 × m) with [u_ref; θ_ref] = T u_m, and the undetermined motions (k × 6, none: k = 0).
 
     One row per independent component: its grid's offset ``r`` (m × 3, x_i − x_ref),
     its component 1..6 and weight. T = (GᵀWG)⁻¹GᵀW (MSC QRG, RBE3): G stacks one
     rigid-body row per independent component, W = diag(WT, WT·Lc² for rotations),
-    Lc = mean |r_i|. Solved in the scaled unknowns [u_ref; Lc·θ_ref] so that the
-    singularity test has no units; the undetermined motions are [u; θ] of the null space.
+    Lc = mean |r_i|; ``axes`` (m × 3 × 3, default basic): the axes each row's component is
+    measured in (its grid's CD system). Solved in the scaled unknowns [u_ref; Lc·θ_ref] so
+    that the singularity test has no units; the undetermined motions are [u; θ] of the
+    null space.
     """
     r, w = np.asarray(r, float).reshape(-1, 3), np.array(weights, float)
     lc = float(np.mean(np.linalg.norm(r, axis=1)))
     scale = lc if lc > 0.0 else 1.0
     g_rows = np.zeros((len(r), 6))
     for n, c in enumerate(components):
-        g_rows[n, c - 1] = 1.0
+        e = np.eye(3) if axes is None else axes[n]
+        axis = e[:, (c - 1) % 3]
         if c <= 3:  # u_gc = e_c·u_ref + (r × e_c)·θ_ref
-            g_rows[n, 3:] = _cross_rows(r[n])[c - 1] / scale
-        else:  # θ_gc = e_c·θ_ref, measured as Lc·θ with weight WT·Lc²/scale² (WT, or 0 if Lc = 0)
+            g_rows[n, :3] = axis
+            g_rows[n, 3:] = axis @ _cross_rows(r[n]) / scale
+        else:
+            # θ_gc = e_c·θ_ref, measured as Lc·θ with weight WT·Lc²/scale² (WT, or 0 if Lc = 0)
+            g_rows[n, 3:] = axis
             w[n] *= (lc / scale) ** 2
     a = g_rows.T @ (w[:, None] * g_rows)
     eig, vec = np.linalg.eigh(a)
@@ -134,7 +185,8 @@ def undetermined(motions: np.ndarray, x_ref: np.ndarray) -> str:
 
 
 def _rbe3_matrix(card: Card, grids: _Grids) -> tuple[np.ndarray, list[tuple[int, int, str]]]:
-    """:func:`rbe3_matrix` of an RBE3 card, over its independent (grid, component, field) list."""
+    """:func:`rbe3_matrix` of an RBE3 card, over its independent (grid, component, field)
+    list; rows in the global (CD) components of REFGRID."""
     ref = grids(card, "REFGRID")
     entries: list[tuple[int, int, str]] = []
     weights: list[float] = []
@@ -148,7 +200,8 @@ def _rbe3_matrix(card: Card, grids: _Grids) -> tuple[np.ndarray, list[tuple[int,
                 entries.append((g, c, key))
                 weights.append(weight)
     r = np.array([grids.xyz[grids.row[g]] - grids.xyz[ref] for g, _, _ in entries]).reshape(-1, 3)
-    t, null = rbe3_matrix(r, [c for _, c, _ in entries], weights)
+    axes = None if grids.cd is None else [grids.axes(grids.row[g]) for g, _, _ in entries]
+    t, null = rbe3_matrix(r, [c for _, c, _ in entries], weights, axes)
     if len(null):
         raise card.error(
             "GROUPS",
@@ -156,7 +209,7 @@ def _rbe3_matrix(card: Card, grids: _Grids) -> tuple[np.ndarray, list[tuple[int,
             f"(GᵀWG is singular; undetermined: {undetermined(null, grids.xyz[ref])}); add translations (123) "
             "of independent grids that are not all on one line through it, or their rotations (456)",
         )
-    return t, entries
+    return (t if grids.cd is None else _six(grids.axes(ref)).T @ t), entries
 
 
 def _dof_map(bulk: BulkData, grids: _Grids, spc_set: int | None, mpc_set: int | None = None) -> DofMap:
@@ -174,8 +227,12 @@ def _dof_map(bulk: BulkData, grids: _Grids, spc_set: int | None, mpc_set: int | 
       rotations), Lc = mean |r_i|. Then [u_ref; θ_ref] = (GᵀWG)⁻¹GᵀW u_m and the REFC
       rows of that 6 × m matrix are the dependent rows. A singular GᵀWG (one grid or
       grids on one line with translations only) is an error.
+    - RBAR, RBE1, RROD: see :mod:`jaxfem._rigid`.
     - MPC (set ``mpc_set``): Σ A_i u_GiCi = 0 with the first term dependent,
       u_G1C1 = −Σ_{i≥2} (A_i/A1) u_GiCi.
+
+    Components are global: those of each grid's CD system (``coef`` is then rotated to
+    basic axes, ``DofMap.cd``).
 
     The terms of a dependent DoF may themselves be dependent or constrained: chains are
     followed to independent DoFs (constrained ones contribute zero); loops and a DoF
@@ -195,6 +252,8 @@ def _dof_map(bulk: BulkData, grids: _Grids, spc_set: int | None, mpc_set: int | 
     node_rows = [[_row(int(g), c, dependent, fixed, number, rows) for c in range(1, COMPONENTS + 1)] for g in grids.ids]
     n_dof = len(labels)
     index, coef = _node_arrays(node_rows, n_dof)
+    if grids.cd is not None:  # global (CD) components to basic: u_basic = diag(R, R) u_global
+        coef = np.einsum("nij,njw->niw", np.stack([_six(r) for r in grids.cd]), coef)
     return DofMap(
         index=index,
         coef=coef,
@@ -202,6 +261,7 @@ def _dof_map(bulk: BulkData, grids: _Grids, spc_set: int | None, mpc_set: int | 
         massless=np.zeros(0, dtype=np.int64),
         auto_spc=np.zeros((0, 2), dtype=np.int64),
         n_dof=n_dof,
+        cd=grids.cd,
     )
 
 
@@ -210,6 +270,8 @@ def _depend(dependent: _Dependent, fixed: dict[tuple[int, int], Card], card: Car
     """Make (g, c) dependent on ``card`` through ``terms``; a constrained or already dependent DoF is an error."""
     if (g, c) in fixed:
         other = fixed[(g, c)]
+        if other is None:
+            raise card.error(key, f"point {g} is a scalar point: it has no component {c}")
         raise card.error(
             key, f"grid {g} component {c} is both {card.name}-dependent and constrained by "
             f"{other.name} at {other.file}:{other.line}",
@@ -239,13 +301,18 @@ def _dependents(bulk: BulkData, grids: _Grids, fixed: dict[tuple[int, int], Card
         for c in _components(card["REFC"]):
             terms = [((g, e), float(a), key) for (g, e, key), a in zip(entries, t[c - 1]) if a != 0.0]
             _depend(dependent, fixed, card, "REFC", card["REFGRID"], c, terms)
+    for name, terms_of in (("RBAR", rbar), ("RBE1", rbe1), ("RROD", rrod)):
+        for card in _by_id(bulk[name]):
+            for g, c, key, terms in terms_of(card, grids):
+                _depend(dependent, fixed, card, key, g, c, terms)
     mpc = _selected(bulk, ("MPC",), mpc_set, "mpc_set")
     for card in bulk["MPC"]:
-        if card["SID"] != mpc:
+        if card["SID"] not in mpc:
             continue
         for k, (g, _, _) in enumerate(card["TERMS"], 1):
             grids(card, f"G{k}", g)
-        (g1, c1, a1), *others = card["TERMS"]
+        (g1, c1, a1), *others = [(g, _component(grids, card, f"C{k}", g, c), a)
+                                 for k, (g, c, a) in enumerate(card["TERMS"], 1)]
         terms = [((g, c), -a / a1, f"G{k}") for k, (g, c, a) in enumerate(others, 2) if a != 0.0]
         _depend(dependent, fixed, card, "G1", g1, c1, terms)
     return dependent

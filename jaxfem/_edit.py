@@ -42,7 +42,7 @@ def _widen(dofs: DofMap, width: int, n_new: int) -> DofMap:
         coef = np.pad(coef, ((0, 0), (0, 0), (0, pad)))
     index = np.where(index == dofs.n_dof, dofs.n_dof + n_new, index)
     return DofMap(index=index, coef=coef, labels=dofs.labels, massless=dofs.massless,
-                  auto_spc=dofs.auto_spc, n_dof=dofs.n_dof + n_new)
+                  auto_spc=dofs.auto_spc, n_dof=dofs.n_dof + n_new, cd=dofs.cd)
 
 
 def _own_dofs(model: Model, row: int) -> DofMap:
@@ -58,12 +58,16 @@ def _own_dofs(model: Model, row: int) -> DofMap:
     index, coef = dofs.index.copy(), dofs.coef.copy()
     index[row] = dofs.n_dof
     coef[row] = 0.0
+    axes = np.eye(3) if dofs.cd is None else dofs.cd[row]  # basic from global (CD) components
     for c in range(1, COMPONENTS + 1):
         index[row, c - 1] = own[c]
-        coef[row, c - 1, c - 1] = 1.0
+    for c in range(1, COMPONENTS + 1):
+        for j in range(1, COMPONENTS + 1):
+            if (c - 1) // 3 == (j - 1) // 3:
+                coef[row, c - 1, j - 1] = axes[(c - 1) % 3, (j - 1) % 3]
     labels = np.concatenate([dofs.labels, np.array([[node, c] for c in missing], dtype=np.int64).reshape(-1, 2)])
     return DofMap(index=index, coef=coef, labels=labels, massless=dofs.massless,
-                  auto_spc=dofs.auto_spc, n_dof=dofs.n_dof)
+                  auto_spc=dofs.auto_spc, n_dof=dofs.n_dof, cd=dofs.cd)
 
 
 def release(model: Model, node: int) -> Model:
@@ -86,8 +90,9 @@ def _with_grid(model: Model, xyz, node: int | None, terms: dict[int, np.ndarray]
     index[0, :len(used)] = used
     for k, i in enumerate(used):
         coef[0, :, k] = terms[i]
+    cd = None if dofs.cd is None else np.concatenate([dofs.cd, np.eye(3)[None]])
     grown = DofMap(index=np.concatenate([dofs.index, index]), coef=np.concatenate([dofs.coef, coef]),
-                   labels=dofs.labels, massless=dofs.massless, auto_spc=dofs.auto_spc, n_dof=dofs.n_dof)
+                   labels=dofs.labels, massless=dofs.massless, auto_spc=dofs.auto_spc, n_dof=dofs.n_dof, cd=cd)
     return eqx.tree_at(lambda m: (m.node_ids, m.xyz, m.dofs), model,
                        (np.append(model.node_ids, node),
                         np.concatenate([model.xyz, np.asarray(xyz, dtype=np.float64).reshape(1, 3)]), grown)), node

@@ -1,8 +1,9 @@
 """Grids, coordinate systems and element axes of bulk data, in basic coordinates.
 
-CORD2R systems (chains of RID resolved) place each GRID in basic; an element axis runs
-A→B, with a located error at zero length; an orientation vector (X1, X2, X3 or the grid
-G0) must not be parallel to it (MSC QRG, CORD2R, GRID, CBAR). Coordinates, offsets and
+Coordinate systems (:mod:`jaxfem._coordinates`) place each GRID in basic and give the
+axes of its CD system; an element axis runs A→B, with a located error at zero length; an
+orientation vector (X1, X2, X3 or the grid G0) must not be parallel to it (MSC QRG,
+GRID, CBAR). Coordinates, offsets and
 orientation components lie within ±1e100 m, element lengths above 1e-100 m, so that no
 length, area or volume overflows. Also the small converters
 the builders share: cards sorted by id, int64 and float64 arrays. Errors are
@@ -15,6 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._coordinates import _resolve
 from .io import Card
 
 _PARALLEL_TOL = 1e-8  # |x̂ × v| < tol·|v|: orientation vector along the element axis
@@ -44,61 +46,49 @@ def _by_id(cards: list[Card]) -> list[Card]:
     return sorted(cards, key=lambda c: c.id)
 
 
-def _coordinate_systems(cards: list[Card]) -> dict[int, tuple[np.ndarray, np.ndarray]]:
-    """CORD2R id -> (origin, T) in basic: ``x_basic = origin + T @ x_local``, T columns = axes.
-
-    Axes from points A (origin), B (on z) and C (in the x–z plane), each given in the
-    reference system RID (MSC QRG, CORD2R); chains of RID are resolved, iteratively (a
-    chain may be as long as the file).
-    """
-    by_id = {c.id: c for c in cards}
-    frames: dict[int, tuple[np.ndarray, np.ndarray]] = {0: (np.zeros(3), np.eye(3))}
-
-    def place(card: Card) -> None:
-        _check_lengths(card, tuple(f"{p}{k}" for p in "ABC" for k in (1, 2, 3)))
-        origin, t = frames[card["RID"]]
-        a, b, c = (origin + t @ np.array([card[f"{p}{k}"] for k in (1, 2, 3)], dtype=float) for p in "ABC")
-        z, xz = b - a, c - a
-        y = np.cross(z, xz)
-        if np.linalg.norm(z) == 0.0 or np.linalg.norm(y) <= 1e-12 * np.linalg.norm(z) * np.linalg.norm(xz):
-            raise card.error("A1", "points A, B, C do not define axes (coincident or collinear)")
-        z, y = z / np.linalg.norm(z), y / np.linalg.norm(y)
-        frames[card.id] = (a, np.column_stack([np.cross(y, z), y, z]))
-
-    for card in cards:
-        if card.id in frames:
-            continue
-        chain, seen = [card], {card.id}  # systems to place, each referring to the next one
-        while chain[-1]["RID"] not in frames:
-            rid = chain[-1]["RID"]
-            if rid in seen:
-                ids = tuple(c.id for c in chain) + (rid,)
-                raise chain[-1].error("RID", f"coordinate systems refer to each other in a loop {ids}")
-            if rid not in by_id:
-                raise chain[-1].error("RID", f"reference system {rid} is not a CORD2R")
-            chain.append(by_id[rid])
-            seen.add(rid)
-        for c in reversed(chain):
-            place(c)
-    return frames
-
-
 class _Grids:
-    """Grid ids (ascending), positions in basic [m], and row lookup with located errors."""
+    """Grid and scalar-point ids (ascending), positions in basic [deck length unit], the
+    displacement axes of each grid's CD system (``cd``: None when all are basic), and row
+    lookup with located errors. A scalar point (SPOINT, or ``implicit``: an id that scalar
+    elements name and no GRID defines) is a point with one DoF: it sits at the basic
+    origin, its component 0 is stored as component 1 (``scalar_rows``: their rows)."""
 
-    def __init__(self, cards: list[Card], frames: dict[int, tuple[np.ndarray, np.ndarray]]):
+    def __init__(self, cards: list[Card], cords: list[Card], spoints: list[Card] = (),
+                 implicit: set[int] = frozenset()):
         cards = _by_id(cards)
-        xyz = []
-        for card in cards:
-            if card["CP"] not in frames:
-                raise card.error("CP", f"coordinate system {card['CP']} is not a CORD2R")
-            _check_lengths(card, ("X1", "X2", "X3"))
-            origin, t = frames[card["CP"]]
-            xyz.append(origin + t @ np.array([card["X1"], card["X2"], card["X3"]]))
+        self.frames, placed = _resolve(_by_id(cords), cards, _check_lengths)
+        scalar = sorted({int(s) for card in spoints for s in card["ID"]} | (set(implicit) - set(placed)))
+        clash = set(scalar) & set(placed)
+        if clash:
+            card = next(c for c in spoints if clash & set(c["ID"]))
+            raise card.error("ID", f"scalar point {min(clash)} is also a GRID")
+        ids = sorted(list(placed) + scalar)
         self.cards = cards
-        self.ids = _ints([c.id for c in cards])
-        self.xyz = np.asarray(xyz, dtype=np.float64).reshape(-1, 3)
+        self.ids = _ints(ids)
+        self.xyz = np.array([placed.get(g, np.zeros(3)) for g in ids], dtype=np.float64).reshape(-1, 3)
         self.row = {int(g): i for i, g in enumerate(self.ids)}
+        self.scalar_rows = frozenset(self.row[s] for s in scalar)
+        self.cd = self._cd_axes(cards) if any(c["CD"] for c in cards) else None
+
+    def _cd_axes(self, cards: list[Card]) -> np.ndarray:
+        """(n, 3, 3): the displacement axes of every point's CD system at its position."""
+        axes = np.tile(np.eye(3), (len(self.ids), 1, 1))
+        for card in cards:
+            if card["CD"] not in self.frames:
+                raise card.error("CD", f"coordinate system {card['CD']} is not defined")
+            row = self.row[card.id]
+            axes[row] = self.frames[card["CD"]].axes_at(self.xyz[row])
+        return axes
+
+    def axes(self, row: int) -> np.ndarray:
+        """Displacement axes (columns in basic) of the point in ``row``."""
+        return np.eye(3) if self.cd is None else self.cd[row]
+
+    def frame(self, card: Card, key: str):
+        """The coordinate system ``card[key]`` names, or a located error."""
+        if card[key] not in self.frames:
+            raise card.error(key, f"coordinate system {card[key]} is not defined")
+        return self.frames[card[key]]
 
     def __call__(self, card: Card, key: str, grid: int | None = None) -> int:
         """Row of grid ``card[key]`` (or ``grid``, listed in field ``key``)."""

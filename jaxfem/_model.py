@@ -17,6 +17,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
+from ._scalar_model import Conm1, Dampers, DirectMatrices, ScalarMasses
+
 COMPONENTS = 6  # DoFs per grid: T1 T2 T3 R1 R2 R3 (Nastran components 1..6)
 # Element blocks of a Model that carry stiffness (k_scale), mass (m_scale), or that join
 # grids as structure (drawn, localised, edited).
@@ -78,10 +80,15 @@ class Materials(eqx.Module):
 
 
 class BeamSections(eqx.Module):
-    """Bar/beam sections (PBAR, PBARL, PBEAM), one row per property id.
+    """Bar/beam sections (PBAR, PBARL, PBEAM, PBEAML), one row per property id.
 
     A in m², I1/I2/J in m⁴, nsm in kg/m. K1/K2 are shear area factors; 0 means
-    no shear flexibility (Euler–Bernoulli), as a blank field in Nastran.
+    no shear flexibility (Euler–Bernoulli), as a blank field in Nastran. I1, I2, K1, K2
+    are in the section's principal axes, turned by ``angle`` [rad] about the element x
+    from the element axes of the card (0 unless a PBARL/PBEAML has I12 ≠ 0; the builder
+    turns the elements' v by it). ``section_type``: the TYPE of a constant PBARL/PBEAML
+    section, as its index in ``jaxfem._section_library.TYPES`` (−1: PBAR, PBEAM, tapered
+    PBEAML); ``dims``: its DIM1..DIMn [m] (0 beyond n and on the other rows).
     """
 
     ids: Int[np.ndarray, " nsec"]
@@ -93,6 +100,35 @@ class BeamSections(eqx.Module):
     K1: Float[Array, " nsec"]
     K2: Float[Array, " nsec"]
     nsm: Float[Array, " nsec"]
+    angle: Float[Array, " nsec"]
+    section_type: Int[np.ndarray, " nsec"]
+    dims: Float[Array, "nsec ndim"]
+
+    def with_dims(self, rows: np.ndarray, dims: Float[Array, "n ndim"]) -> tuple[BeamSections, Float[Array, " n"]]:
+        """These sections with the library sections of ``rows`` (``section_type`` ≥ 0) given
+        the dimensions ``dims``: their A, I1, I2, J, K1, K2 and principal angle recomputed as
+        the builder does (:mod:`jaxfem._section_library`), pure JAX, differentiable in
+        ``dims``; K1, K2 stay 0 where they are 0 (a CBAR section with I12 ≠ 0).
+
+        **Returns:** ``(sections, turn)``, ``turn[i]`` the change of the principal angle of
+        row ``rows[i]`` [rad], by which the v of its elements turns.
+        """
+        from . import _section_library as library
+
+        keys = ("A", "I1", "I2", "J", "K1", "K2", "angle")
+        out = {k: getattr(self, k) for k in keys}
+        turns = []
+        for i, r in enumerate(rows):
+            name = library.TYPES[int(self.section_type[r])]
+            a, i_1, i_2, i12, j, k1, k2 = library.section(name, dims[i, : library.DIMENSIONS[name]])
+            theta, i_1, i_2, k1, k2 = library.principal(i_1, i_2, i12, k1, k2)
+            k1, k2 = jnp.where(self.K1[r] > 0.0, k1, 0.0), jnp.where(self.K2[r] > 0.0, k2, 0.0)
+            for k, value in zip(keys, (a, i_1, i_2, j, k1, k2, theta)):
+                out[k] = out[k].at[r].set(value)
+            turns.append(theta - self.angle[r])
+        new = (*(out[k] for k in keys), self.dims.at[rows].set(dims))
+        sections = eqx.tree_at(lambda s: (s.A, s.I1, s.I2, s.J, s.K1, s.K2, s.angle, s.dims), self, new)
+        return sections, jnp.stack(turns)
 
 
 class RodSections(eqx.Module):
@@ -174,6 +210,7 @@ class Beams(eqx.Module):
     offsets: Float[Array, "n 2 3"]
     k_scale: Float[Array, " n"]
     m_scale: Float[Array, " n"]
+    cbeam: np.ndarray | None = None  # bool (n,): a CBEAM (lumped mass with torsional inertia), else a CBAR
 
 
 class Rods(eqx.Module):
@@ -229,7 +266,10 @@ class DofMap(eqx.Module):
 
     Single-point constraints remove components; RBE2, RBE3 and MPC make dependent
     components combinations of independent DoFs (constraint elimination).
-    ``u[node, c] = coef[node, c] @ u_solved[index[node]]``; index == n_dof is padding.
+    ``u[node, c] = coef[node, c] @ u_solved[index[node]]``, u in basic axes; index ==
+    n_dof is padding. ``labels`` name the solved DoFs by their grid's global components,
+    those of its displacement (CD) system, whose axes in basic are ``cd[node]`` (MSC QRG,
+    GRID CD); a scalar point's one DoF is component 1.
     """
 
     index: Int[np.ndarray, "nnode w"]
@@ -238,6 +278,7 @@ class DofMap(eqx.Module):
     massless: Int[np.ndarray, " nb"]  # solved DoFs without mass (condensed statically)
     auto_spc: Int[np.ndarray, "nauto 2"]  # (node id, component) with neither mass nor stiffness, removed
     n_dof: int = eqx.field(static=True)
+    cd: Float[np.ndarray, "nnode 3 3"] | None = None  # axes of each grid's CD system (None: all basic)
 
 
 class Viscoelastic(eqx.Module):
@@ -283,9 +324,9 @@ def _rows_of(node_ids: np.ndarray) -> dict[int, int]:
 class Model(eqx.Module):
     """A structural model: grids, elements by type, properties, materials, constraints.
 
-    Build one with ``jaxfem.build_model(jaxfem.io.read_bdf(path))``. All lengths in
-    m, masses in kg, stiffnesses in N/m, moduli in Pa (SI; Nastran files carry no
-    units, so the file must be written in SI).
+    Build one with ``jaxfem.build_model(jaxfem.io.read_bdf(path))``. Values are in the
+    deck's own consistent units (SI: m, kg, N/m, Pa; or mm–t–s, in–lbf–s, ...), masses
+    after PARAM WTMASS; frequencies in Hz do not depend on the unit system.
     """
 
     node_ids: Int[np.ndarray, " nnode"]
@@ -306,6 +347,11 @@ class Model(eqx.Module):
     k6rot: float = eqx.field(static=True, default=100.0)  # PARAM K6ROT: shell drilling stiffness
     viscoelastic: Viscoelastic | None = None  # frequency-dependent stiffness, see jaxfem.modes
     damping: StructuralDamping | None = None  # element loss factors, see jaxfem.damping_matrix
+    scalar_masses: ScalarMasses | None = None  # CMASS1-4
+    dampers: Dampers | None = None  # CDAMP1-4, CVISC: the viscous damping matrix, see jaxfem.viscous_damping
+    conm1: Conm1 | None = None  # CONM1 6 x 6 masses
+    direct: DirectMatrices | None = None  # DMIG selected by K2GG, M2GG, B2GG
+    scalar_rows: np.ndarray | None = None  # rows of the scalar points (one DoF, component 1; at the origin)
 
     def with_effect(self, effect) -> Model:
         """This model with a physical effect added (``updating.Effect``; see its ``apply``)."""

@@ -280,7 +280,7 @@ def _theta(card: Card, frame: np.ndarray, frames: dict) -> float:
         return float(np.radians(card["THETA"]))
     if card["MCID"] not in frames:
         raise card.error("MCID", f"coordinate system {card['MCID']} is not a CORD2R")
-    axis = frames[card["MCID"]][1][:, 0]
+    axis = frames[card["MCID"]].t[:, 0]
     p = axis - (axis @ frame[2]) * frame[2]
     if np.linalg.norm(p) < _PARALLEL_TOL:
         raise card.error("MCID", f"the x axis of coordinate system {card['MCID']} is normal to the element")

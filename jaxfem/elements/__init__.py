@@ -1,6 +1,7 @@
 """Element matrices (one element per call; vmap over elements), basic axes, 6 DoFs per grid."""
 
 from ._beam import beam_axes as beam_axes
+from ._beam import beam_lumped_torsion as beam_lumped_torsion
 from ._beam import beam_mass as beam_mass
 from ._beam import beam_stiffness as beam_stiffness
 from ._beam import rigid_offset as rigid_offset

@@ -254,3 +254,16 @@ def beam_mass(
         _bending_mass(m_len, jnp.where(shear2, rho * I2, 0.0), L, phi2),
     )
     return to_basic(axes, m)
+
+
+def beam_lumped_torsion(
+    xa: Float[ArrayLike, "3"], xb: Float[ArrayLike, "3"], rho: Float[ArrayLike, ""], I1: Float[ArrayLike, ""],
+    I2: Float[ArrayLike, ""],
+) -> Float[Array, "12 12"]:
+    """Lumped torsional inertia of a CBEAM, ρ(I1 + I2)L/2 about the axis at each end, in
+    basic axes (Nastran's lumped CBEAM mass has it, the CBAR's has not)."""
+    e = jnp.asarray(xb) - jnp.asarray(xa)
+    L = jnp.linalg.norm(e)
+    block = rho * (I1 + I2) * L / 2.0 * jnp.outer(e, e) / L**2
+    out = jnp.zeros((12, 12))
+    return out.at[3:6, 3:6].set(block).at[9:12, 9:12].set(block)
