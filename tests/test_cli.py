@@ -66,7 +66,7 @@ def test_a_deck_with_two_spc_sets_needs_spc_set(tmp_path):
     result = runner.invoke(app, ["modes", str(deck), "-n", "3"])
     assert result.exit_code == 2 and "Traceback" not in result.output
     assert (f"{deck}:61: SPC1 2 field 2 (SID): several SPC sets [1, 2] (SPC1 1 at {deck}:59, SPC1 2 at {deck}:61); "
-            "choose one with spc_set (--spc-set on the command line)") in result.output.replace("\n", ""), result.output
+            "choose one in the case control (SPC = n) or with spc_set (--spc-set)") in result.output.replace("\n", ""), result.output
     first = {}
     for sid in (1, 2):
         out = tmp_path / f"set{sid}.json"
@@ -76,4 +76,4 @@ def test_a_deck_with_two_spc_sets_needs_spc_set(tmp_path):
     model = jaxfem.build_model(read_bdf(deck), spc_set=2)
     assert first[2] == np.float64(jaxfem.frequencies_hz(jaxfem.modes(model, 3)[0])[0]) and first[2] != first[1]
     result = runner.invoke(app, ["modes", str(deck), "--spc-set", "7"])
-    assert result.exit_code == 2 and "SPC set 7 (spc_set) is not in the file (sets: [1, 2])" in result.output
+    assert result.exit_code == 2 and "SPC set 7 (spc_set or case control) is not in the bulk data (sets: [1, 2])" in result.output

@@ -238,3 +238,22 @@ def test_sensors_on_a_beam_surface_see_torsion_through_the_rigid_link(tmp_path):
     assert len(pairs) == int(seen.sum())
     assert all(pairs[j + 1]["mac"] > 1 - 1e-6 for j in twist)
     assert min(p["mac"] for p in pairs.values()) > 1 - 1e-6
+
+
+def test_a_model_in_mm_t_s_reads_the_test_geometry_in_its_length_unit(plate_files, tmp_path):
+    """The plate written in mm–t–s: with --units mm-t-s the test points (m in the file) map
+    onto it as onto the SI plate: same reads, distances and pairs, reported in m."""
+    root, model, f, shapes = plate_files
+    test = _artemis(root / "artemis_mm.uff", POINTS * 100, shapes, f)
+    (tmp_path / "plate.bdf").write_text(plate(A * 1000, B * 1000, 8, 8, "PSHELL,1,1,10.,1,,1\nMAT1,1,70.E3,,0.3,2.7-9",
+                                              bc="free"))
+    args = ["--test-units", "cm", "--map", "interpolate"]
+    result, si = _correlate(root, test, *args)
+    assert result.exit_code == 0, result.output
+    result, mm = _correlate(tmp_path, test, *args, "--units", "mm-t-s")
+    assert result.exit_code == 0, result.output
+    for a, b in zip(si["test_geometry"]["nodes"], mm["test_geometry"]["nodes"]):
+        assert a["reads"] == b["reads"]
+        np.testing.assert_allclose(a["xyz_m"], b["xyz_m"], atol=1e-9)
+    np.testing.assert_allclose([p["f_model_hz"] for p in mm["paired_modes"]],
+                               [p["f_model_hz"] for p in si["paired_modes"]], rtol=1e-9)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import typer
 
 from ._appropriate import appropriate
+from ._check import check
 from ._correlate import correlate
 from ._demo import demo
 from ._diagnose import diagnose
@@ -26,5 +27,5 @@ def _main() -> None:
     jax.config.update("jax_enable_x64", True)
 
 
-for _command in (modes, demo, correlate, update, diagnose, frf, identify, appropriate, montecarlo):
+for _command in (modes, check, demo, correlate, update, diagnose, frf, identify, appropriate, montecarlo):
     app.command()(_command)

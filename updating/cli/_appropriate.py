@@ -8,7 +8,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from ._common import AllowUnsupportedOpt, ModelArg, MpcSetOpt, SpcSetOpt, fail, load_model, write_json
+from ._common import AllowUnsupportedOpt, ModelArg, MpcSetOpt, SpcSetOpt, SubcaseOpt, fail, load_model, write_json
 
 
 def _dof_indices(model, spec: str, option: str) -> tuple[list[int], list[str]]:
@@ -50,6 +50,7 @@ def appropriate(
     allow_unsupported: AllowUnsupportedOpt = False,
     spc_set: SpcSetOpt = None,
     mpc_set: MpcSetOpt = None,
+    subcase: SubcaseOpt = None,
 ) -> None:
     """Phase-resonance planning: the predicted MIF (eq. 3.54) of every set of ``--exciters``
     positions among the candidates, with the appropriated forces (thesis §3.4, Table 5.11)."""
@@ -65,7 +66,7 @@ def appropriate(
     ):
         if not ok:
             fail(f"{flag} {value:g}: must be {what}")
-    model = load_model(model_path, allow_unsupported=allow_unsupported, sets=(spc_set, mpc_set))
+    model = load_model(model_path, allow_unsupported=allow_unsupported, sets=(spc_set, mpc_set, subcase))
     cand, labels = _dof_indices(model, candidates, "--candidates")
     sens = _dof_indices(model, sensors, "--sensors")[0] if sensors else None
     K, M = (np.asarray(a.todense()) for a in jaxfem.assemble(model))

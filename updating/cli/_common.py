@@ -8,7 +8,7 @@ import json
 import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Annotated, NoReturn, get_type_hints
 
@@ -18,7 +18,7 @@ import typer
 from .. import json_safe
 
 ModelArg = Annotated[Path, typer.Argument(metavar="MODEL.bdf", exists=True, dir_okay=False,
-                                          help="Nastran bulk data (SI units)")]
+                                          help="Nastran deck (any consistent units: see --units)")]
 TestArg = Annotated[Path, typer.Argument(metavar="TEST.uff", exists=True, dir_okay=False,
                                          help="universal file with the measured modes (dataset 55)")]
 JsonOut = Annotated[Path, typer.Option("--json", dir_okay=False, help="write results as JSON")]
@@ -61,20 +61,22 @@ def check_plots(plots: Path | None) -> None:
 
 
 def load_model(path: Path, content: dict | None = None, allow_unsupported: bool = False,
-               sets: tuple[int | None, int | None] = (None, None)):
+               sets: tuple[int | None, ...] = (None, None, None)):
     """The model of a bulk-data file; exit 2 naming the file, line, card and field when it
     cannot be read or built, naming ``--allow-unsupported`` when it holds unsupported
     structural cards; the reader's and builder's warnings on stderr. ``content``: a dict
     to receive the parsed bulk data (``bulk``); ``allow_unsupported``: build without those
-    cards; ``sets``: the SPC and MPC set ids to apply (``--spc-set``, ``--mpc-set``; None:
-    the only one in the file) (:func:`jaxfem.build_model`)."""
+    cards; ``sets``: the SPC and MPC set ids to apply and the subcase whose choices hold
+    otherwise (``--spc-set``, ``--mpc-set``, ``--subcase``; None: the case control's, else the
+    only set in the file) (:func:`jaxfem.build_model`)."""
     import jaxfem
     from jaxfem.io import UnsupportedCardsError, read_bdf
 
     with echoed_warnings():
         try:
             bulk = read_bdf(path)
-            model = jaxfem.build_model(bulk, *sets, allow_unsupported=allow_unsupported)
+            spc, mpc, subcase = (tuple(sets) + (None, None, None))[:3]
+            model = jaxfem.build_model(bulk, spc, mpc, subcase=subcase, allow_unsupported=allow_unsupported)
         except UnsupportedCardsError as err:
             fail(f"cannot read model {path}: {err.problem}; --allow-unsupported builds it without them")
         except (ValueError, OSError) as err:
@@ -147,14 +149,20 @@ DofMapOpt = Annotated[Path | None, typer.Option(
     "--dof-map", metavar="CSV", exists=True, dir_okay=False,
     help="channel → DoF table (columns channel,node,direction) for records without DoFs (node 0, direction 0)")]
 SpcSetOpt = Annotated[int | None, typer.Option(
-    "--spc-set", metavar="SID", help="the SPC/SPC1 set to apply when the bulk data holds several (as case control "
-                                     "SPC = SID; default: the only one)")]
+    "--spc-set", metavar="SID", help="the SPC/SPC1/SPCADD set to apply, over the case control's SPC = SID "
+                                     "(default: the case control's, else the only one)")]
 MpcSetOpt = Annotated[int | None, typer.Option(
-    "--mpc-set", metavar="SID", help="the MPC set to apply when the bulk data holds several (as case control "
-                                     "MPC = SID; default: the only one)")]
+    "--mpc-set", metavar="SID", help="the MPC/MPCADD set to apply, over the case control's MPC = SID "
+                                     "(default: the case control's, else the only one)")]
+SubcaseOpt = Annotated[int | None, typer.Option(
+    "--subcase", metavar="ID", help="the case control's subcase whose SPC, MPC, METHOD and K2GG/M2GG/B2GG choices "
+                                    "apply (default: the first)")]
 AllowUnsupportedOpt = Annotated[bool, typer.Option(
     "--allow-unsupported", help="build the model without the structural cards jaxfem does not support (elements, "
                                 "properties, materials it cannot read): the structure then lacks them")]
+UnitsOpt = Annotated[str, typer.Option(
+    "--units", metavar="SYSTEM", help="the deck's consistent unit system, for the units shown and the test geometry "
+                                      "(converted to its length): SI, mm-t-s, cm-g-s, in-lbf-s, ft-lbf-s")]
 AlignOpt = Annotated[bool, typer.Option(
     "--align", help="move the test geometry onto the model first (rigid least-squares fit on matched points)")]
 
@@ -162,13 +170,14 @@ AlignOpt = Annotated[bool, typer.Option(
 @dataclass(frozen=True)
 class Geometry:
     """The test-geometry options of a command (``--map``, ``--max-distance``,
-    ``--test-units``, ``--align``), declared once: each field's annotation is its typer
+    ``--test-units``, ``--align``, and ``--units``, the model's), declared once: each field's annotation is its typer
     option (name, help, checks) and its default the option's (:func:`geometry_options`)."""
 
     map: MapOpt = "auto"
     max_distance: MaxDistanceOpt = None
     test_units: TestUnitsOpt = None
     align: AlignOpt = False
+    units: UnitsOpt = "SI"
 
 
 DEFAULT_GEOMETRY = Geometry()  # a command's placeholder default; :func:`geometry_options` replaces it
@@ -203,18 +212,34 @@ def map_geometry(model, test, nodes: dict, units: dict, test_path: Path, geometr
     geometry naming the option to use."""
     from identification import map_test_geometry
 
+    metre = unit_system(geometry.units).metre  # test coordinates are read in m: to the model's length unit
+    nodes = {k: np.asarray(v) / metre for k, v in nodes.items()}
     with echoed_warnings():
         try:
             model, gmap = map_test_geometry(
                 model, nodes, set(test.sensors.nodes.tolist()), method=geometry.map,
-                max_distance=geometry.max_distance, align_frames=geometry.align,
+                max_distance=None if geometry.max_distance is None else geometry.max_distance / metre,
+                align_frames=geometry.align,
                 length_units_given=geometry.test_units is not None,
                 length_factor=units["length"])
         except ValueError as err:
             fail(f"test data {test_path}: {err}")
+    if metre != 1.0:  # reported in m, as the test file's coordinates
+        moved = None if gmap.alignment is None else gmap.alignment | {
+            "translation": np.asarray(gmap.alignment["translation"]) * metre}
+        gmap = replace(gmap, xyz=gmap.xyz * metre, distance=gmap.distance * metre, alignment=moved)
     for line in gmap.lines():
         typer.echo(line)
     return model, gmap.apply(test), gmap
+
+
+def unit_system(name: str):
+    """The :class:`jaxfem.UnitSystem` named by ``--units``; exit 2 naming the choices."""
+    import jaxfem
+
+    if name not in jaxfem.UNIT_SYSTEMS:
+        fail(f"--units {name!r}: use one of {', '.join(jaxfem.UNIT_SYSTEMS)}")
+    return jaxfem.UNIT_SYSTEMS[name]
 
 
 def check_solver(solver: str | None) -> str:
@@ -228,14 +253,12 @@ def check_solver(solver: str | None) -> str:
 
 def load_inputs(model_path: Path, test_path: Path, params_path: Path | None = None, solver: str | None = None,
                 geometry: Geometry = Geometry(), allow_unsupported: bool = False,
-                sets: tuple[int | None, int | None] = (None, None)):
+                sets: tuple[int | None, ...] = (None, None, None)):
     """Model (with the test nodes mapped onto it, :func:`map_geometry`), real test modes,
     observation matrix, the parameter set (None without a file; ``solver``, from
     ``--solver``, overrides its eigensolver), the :class:`identification.GeometryMap` and
     everything read from the test file (:func:`identification.read_uff`), checked
     against each other; on bad input exit 2 naming the file."""
-    from dataclasses import replace
-
     from identification import observation_matrix
 
     from .. import ParameterSet, parameterise

@@ -19,6 +19,7 @@ from ._common import (
     PlotsOut,
     SolverOpt,
     SpcSetOpt,
+    SubcaseOpt,
     TestArg,
     check_plots,
     check_solver,
@@ -64,6 +65,7 @@ def correlate(
     allow_unsupported: AllowUnsupportedOpt = False,
     spc_set: SpcSetOpt = None,
     mpc_set: MpcSetOpt = None,
+    subcase: SubcaseOpt = None,
     max_automac: Annotated[float, typer.Option(
         "--max-automac", help="warn of spatial aliasing when two test modes have an AutoMAC above this")] = 0.9,
 ) -> None:
@@ -76,7 +78,7 @@ def correlate(
     check_plots(plots)
     check_thresholds(n, min_mac, max_freq_dev, max_automac)
     model, test, _, _, gmap, content = load_inputs(model_path, test_path, geometry=geometry,
-                                                   allow_unsupported=allow_unsupported, sets=(spc_set, mpc_set))
+                                                   allow_unsupported=allow_unsupported, sets=(spc_set, mpc_set, subcase))
     try:
         res = correlate_modes(model, test, n_modes=n, min_mac=min_mac, max_freq_dev=max_freq_dev,
                               max_automac=max_automac, solver=check_solver(solver), model_name=str(model_path),

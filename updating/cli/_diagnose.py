@@ -16,6 +16,7 @@ from ._common import (
     MpcSetOpt,
     SolverOpt,
     SpcSetOpt,
+    SubcaseOpt,
     TestArg,
     check_plots,
     check_solver,
@@ -267,6 +268,7 @@ def diagnose(
     allow_unsupported: AllowUnsupportedOpt = False,
     spc_set: SpcSetOpt = None,
     mpc_set: MpcSetOpt = None,
+    subcase: SubcaseOpt = None,
     reference_path: Annotated[Path | None, typer.Option(
         "--reference", metavar="HEALTHY.uff", exists=True, dir_okay=False,
         help="modes of a reference state (e.g. before the damage) at the same sensors: diagnose the change "
@@ -287,7 +289,7 @@ def diagnose(
         fail("--noise-freq, --noise-shape and --noise-damping must be positive (percent)")
     model, test, _, params, gmap, content = load_inputs(model_path, test_path, params_path, solver,
                                                geometry,
-                                               allow_unsupported, (spc_set, mpc_set))
+                                               allow_unsupported, (spc_set, mpc_set, subcase))
     change = None
     if reference_path is not None:
         test, change = _relative(model, test, reference_path, check_solver(solver) or "auto", gmap)

@@ -19,6 +19,7 @@ from ._common import (
     PlotsOut,
     SolverOpt,
     SpcSetOpt,
+    SubcaseOpt,
     TestArg,
     check_plots,
     echoed_warnings,
@@ -137,6 +138,7 @@ def update(
     allow_unsupported: AllowUnsupportedOpt = False,
     spc_set: SpcSetOpt = None,
     mpc_set: MpcSetOpt = None,
+    subcase: SubcaseOpt = None,
 ) -> None:
     """Update model parameters so that the model modes match the test modes.
 
@@ -153,7 +155,7 @@ def update(
     check_plots(plots)
     model, test, _, params, gmap, _ = load_inputs(model_path, test_path, params_path, solver,
                                                geometry,
-                                               allow_unsupported, (spc_set, mpc_set))
+                                               allow_unsupported, (spc_set, mpc_set, subcase))
     last = {}
 
     def progress(p) -> None:
