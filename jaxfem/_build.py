@@ -157,14 +157,15 @@ def _rod_elements(bulk: BulkData, grids: _Grids, properties: dict[int, Card], ma
                   materials) -> tuple:
     """CROD on PROD sections and CONROD with its own section (a row with id −EID, pid 0)."""
     prods, rows = _rod_sections(bulk["PROD"], mat_rows, materials)
-    own = [Card("CONROD", {"PID": -c.id, **{k: c[k] for k in ("MID", "A", "J", "NSM")}}, c.file, c.line, c.fields)
+    own = [Card("CONROD", {"EID": c.id, **{k: c[k] for k in ("MID", "A", "J", "NSM")}}, c.file, c.line, c.fields)
            for c in bulk["CONROD"]]
     if not own:
         return prods, _rods(bulk["CROD"], grids, properties, rows)
     conrods, conrod_rows = _rod_sections(own, mat_rows, materials)
+    conrods = eqx.tree_at(lambda s: s.ids, conrods, -conrods.ids)  # no PROD id: a pids target never names it
     sections = jax.tree.map(lambda a, b: np.concatenate([a, b]) if isinstance(a, np.ndarray)
                             else jnp.concatenate([a, b]), prods, conrods)
-    rows.update({p: len(prods.ids) + r for p, r in conrod_rows.items()})
+    rows.update({-eid: len(prods.ids) + r for eid, r in conrod_rows.items()})
     return sections, _rods(bulk["CROD"] + bulk["CONROD"], grids, properties, rows)
 
 

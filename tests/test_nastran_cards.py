@@ -276,3 +276,10 @@ def test_pbar_with_i12_equals_the_principal_section_in_turned_axes():
     principal = _build(frame.format(v=f"0.,{c!r},{s!r}") + f"PBAR,1,1,1.-4,{(2 + 2**0.5) * 1e-8!r},"
                                                            f"{(2 - 2**0.5) * 1e-8!r},2.-8\n")
     np.testing.assert_allclose(_lam(unsymmetric), _lam(principal), rtol=1e-9)
+
+
+def test_conrod_errors_name_the_conrod():
+    with pytest.raises(BulkDataError, match=r"m.bdf:4: CONROD 7 field 6 \(A\): area must be > 0"):
+        _build("GRID,1,,0.,0.,0.\nGRID,2,,1.,0.,0.\nMAT1,1,7.e10,,0.3,2700.\nCONROD,7,1,2,1,-1.\n")
+    with pytest.raises(BulkDataError, match=r"CONROD 7 field 5 \(MID\): material 4 is not defined"):
+        _build("GRID,1,,0.,0.,0.\nGRID,2,,1.,0.,0.\nMAT1,1,7.e10,,0.3,2700.\nCONROD,7,1,2,4,1.\n")
