@@ -15,7 +15,7 @@ import numpy as np
 
 from ._grids import _by_id, _Grids, _ints
 from ._model import COMPONENTS, DofMap
-from ._rigid import rbar, rbe1, rrod
+from ._rigid import _cross_rows, _rigid, _six, rbar, rbe1, rrod
 from .io import BulkData, BulkDataError, Card
 
 _SINGULAR_RTOL = 1e-10  # RBE3: eigenvalue of the scaled GᵀWG below rtol·largest = singular
@@ -92,30 +92,11 @@ def _constraints(bulk: BulkData, grids: _Grids, spc_set: int | None) -> dict[tup
     return fixed
 
 
-def _cross_rows(r: np.ndarray) -> np.ndarray:
-    """S with (θ × r)_c = Σ_j S[c, j] θ_j, i.e. S[c] = r × e_c."""
-    return np.array([[0.0, r[2], -r[1]], [-r[2], 0.0, r[0]], [r[1], -r[0], 0.0]])
-
-
-def _rigid(r: np.ndarray) -> np.ndarray:
-    """G (6 × 6): basic motion [u; θ] of a point at offset r from a reference point moving
-    rigidly with [u_ref; θ_ref]: u = u_ref + θ_ref × r, θ = θ_ref."""
-    g = np.eye(6)
-    g[:3, 3:] = _cross_rows(r)
-    return g
-
-
 def _global_rigid(grids: _Grids, g: int, ref: int) -> np.ndarray:
     """R6_gᵀ G R6_ref: the global (CD) components of grid ``g`` from those of grid ``ref``
     when both move as one rigid body (R6 = diag(R, R), R the CD axes of the grid)."""
     a, b = grids.row[g], grids.row[ref]
     return _six(grids.axes(a)).T @ _rigid(grids.xyz[a] - grids.xyz[b]) @ _six(grids.axes(b))
-
-
-def _six(r: np.ndarray) -> np.ndarray:
-    out = np.zeros((6, 6))
-    out[:3, :3] = out[3:, 3:] = r
-    return out
 
 
 def _rbe2_terms(card: Card, grids: _Grids, g: int, c: int) -> list[_Term]:

@@ -18,14 +18,30 @@ from .io import Card
 _SINGULAR_RTOL = 1e-10
 
 
+def _cross_rows(r: np.ndarray) -> np.ndarray:
+    """S with (θ × r)_c = Σ_j S[c, j] θ_j, i.e. S[c] = r × e_c."""
+    return np.array([[0.0, r[2], -r[1]], [-r[2], 0.0, r[0]], [r[1], -r[0], 0.0]])
+
+
+def _rigid(r: np.ndarray) -> np.ndarray:
+    """G (6 × 6): basic motion [u; θ] of a point at offset r from a reference point moving
+    rigidly with [u_ref; θ_ref]: u = u_ref + θ_ref × r, θ = θ_ref."""
+    g = np.eye(6)
+    g[:3, 3:] = _cross_rows(r)
+    return g
+
+
+def _six(r: np.ndarray) -> np.ndarray:
+    """diag(R, R): a grid's axes R (columns in basic) on its translations and rotations."""
+    out = np.zeros((6, 6))
+    out[:3, :3] = out[3:, 3:] = r
+    return out
+
+
 def _row(grids: _Grids, g: int, c: int, x_ref: np.ndarray) -> np.ndarray:
     """Row c (1..6, global components of grid g) of A_g = R6_gᵀ G(x_g − x_ref)."""
     row = grids.row[g]
-    r = grids.xyz[row] - x_ref
-    axis = grids.axes(row)[:, (c - 1) % 3]
-    if c > 3:
-        return np.concatenate([np.zeros(3), axis])
-    return np.concatenate([axis, np.cross(r, axis)])  # e·(θ × r) = (r × e)·θ
+    return (_six(grids.axes(row)).T @ _rigid(grids.xyz[row] - x_ref))[c - 1]
 
 
 def rigid_terms(card: Card, grids: _Grids, independent: list[tuple[int, int, str]],
