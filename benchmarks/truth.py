@@ -15,9 +15,11 @@ jaxfem code) with physics deliberately outside the jaxfem model family, and retu
 - SPCs remove DoFs; DoFs with neither stiffness nor mass are removed (``n_removed``);
 - eigenvalues from the shifted pencil (M, K + σM), λ = 1/μ − σ (free–free safe).
 
-Effects (:meth:`Truth.scale`, :meth:`add_mass`, :meth:`ground_spring`,
-:meth:`release_support`, :meth:`joint`, :meth:`viscoelastic`) modify the Truth in place
-and return it, so they chain. SI units throughout: m, kg, s, N, Pa, Hz.
+Effects (:meth:`Truth.scale` (also torsion GJ alone), :meth:`add_mass`, :meth:`add_mass_at`,
+:meth:`ground_spring`, :meth:`release_support`, :meth:`joint`, and frequency-dependent
+stiffness :meth:`frequency_law`, :meth:`viscoelastic`, :meth:`standard_linear_solid`) modify
+the Truth in place and return it, so they chain. :meth:`Truth.measure` adds noise and,
+optionally, uniform modal damping ratios. SI units throughout: m, kg, s, N, Pa, Hz.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from pathlib import Path
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 from threadpoolctl import threadpool_limits
 
 from identification import ModalData, Sensors
@@ -35,7 +38,7 @@ from jaxfem.io import read_bdf, read_bdf_text
 
 PENALTY = 1e5  # RBE2 penalty stiffness / largest diagonal stiffness of the structural elements
 SIGMA = (2 * np.pi * 1.0) ** 2  # eigen shift σ (rad/s)²: K + σM is definite for free–free models
-VISCO_RTOL = 1e-9  # fixed-point tolerance on each viscoelastic mode's frequency
+VISCO_RTOL = 1e-9  # fixed-point tolerance on the frequency of each mode with frequency-dependent stiffness
 _CARDS = {"GRID", "CBAR", "PBAR", "PBARL", "MAT1", "CROD", "PROD", "CBUSH", "PBUSH", "CELAS2",
           "CONM2", "RBE2", "SPC1", "PARAM"}
 _GAUSS = np.polynomial.legendre.leggauss(4)  # exact for the degree-6 products of cubic fields
@@ -83,7 +86,8 @@ def _plane(EI, s, rho_a, rho_i, L):
 
 
 def _beam(xa, xb, v, E, G, rho, sec):
-    """12×12 stiffness and consistent mass of a CBAR segment between end points, basic axes.
+    """12×12 stiffness, consistent mass and the torsion (GJ) part of the stiffness of a CBAR
+    segment between end points, basic axes.
 
     Element axes (QRG CBAR): x from A to B, z = x × v, y = z × x; plane 1 (x–y) bends with
     I1 and shear factor K1, plane 2 (x–z) with I2, K2 (θy = −dw/dx); K = 0: no shear strain.
@@ -94,8 +98,9 @@ def _beam(xa, xb, v, E, G, rho, sec):
     ez = np.cross(ex, v)
     ez /= np.linalg.norm(ez)
     axes = np.array([ex, np.cross(ez, ex), ez])
-    k, m = np.zeros((12, 12)), np.zeros((12, 12))
+    k, m, kt = np.zeros((12, 12)), np.zeros((12, 12)), np.zeros((12, 12))
     bar, bar_m = np.array([[1.0, -1.0], [-1.0, 1.0]]), np.array([[2.0, 1.0], [1.0, 2.0]]) * L / 6
+    kt[np.ix_([3, 9], [3, 9])] = G * J / L * bar
     for dofs, stiff, inertia in (([0, 6], E * A / L, rho * A + nsm), ([3, 9], G * J / L, rho * (I1 + I2))):
         k[np.ix_(dofs, dofs)] += stiff * bar
         m[np.ix_(dofs, dofs)] += inertia * bar_m
@@ -106,7 +111,7 @@ def _beam(xa, xb, v, E, G, rho, sec):
         k[np.ix_(dofs, dofs)] += d[:, None] * kp * d
         m[np.ix_(dofs, dofs)] += d[:, None] * mp * d
     lam = np.kron(np.eye(4), axes)
-    return lam.T @ k @ lam, lam.T @ m @ lam
+    return lam.T @ k @ lam, lam.T @ m @ lam, lam.T @ kt @ lam
 
 
 def _box(card):
@@ -120,17 +125,43 @@ def _box(card):
             2 * t4 * (h - t3) / area, 2 * t3 * (b - t4) / area)
 
 
+@dataclass(frozen=True)
+class PowerLaw:
+    """Stiffness factor (f / f_ref_hz)^exponent."""
+
+    exponent: float
+    f_ref_hz: float
+
+    def __call__(self, f):
+        return (f / self.f_ref_hz) ** self.exponent
+
+
+@dataclass(frozen=True)
+class StandardLinearSolid:
+    """Stiffness factor 1 + k_ratio x / (1 + x), x = (f / f_c_hz)²: 1 at f = 0, rising
+    through f_c_hz and saturating at 1 + k_ratio (a standard linear solid)."""
+
+    k_ratio: float
+    f_c_hz: float
+
+    def __call__(self, f):
+        x = (f / self.f_c_hz) ** 2
+        return 1 + self.k_ratio * x / (1 + x)
+
+
 @dataclass
 class _Element:
-    """Matrices on the 6 basic DoFs of each of its grids; ``visco``: (exponent, f_ref) of a
-    frequency-dependent stiffness."""
+    """Matrices on the 6 basic DoFs of each of its grids; ``kt``: the torsion (GJ) part of
+    ``k`` (beams and rods); ``law``: a hashable stiffness factor law(f_hz) (frequency-dependent
+    stiffness), None for a constant stiffness."""
 
     eid: int | None
     pid: int | None
     grids: tuple
     k: np.ndarray
     m: np.ndarray | None = None
-    visco: tuple | None = None
+    law: object | None = None
+    kt: np.ndarray | None = None
 
 
 def _link(eid, pid, xa, xb, ga, gb, point, k6) -> _Element:
@@ -211,10 +242,11 @@ class Truth:
             xa, xb = self.xyz[c["G1"]], self.xyz[c["G2"]]
             L, e = np.linalg.norm(xb - xa), (xb - xa) / np.linalg.norm(xb - xa)
             bar, ee = np.array([[1.0, -1.0], [-1.0, 1.0]]), np.outer(e, e)
-            k = np.kron(bar, sla.block_diag(E * p["A"] / L * ee, G * p["J"] / L * ee))
+            kt = np.kron(bar, sla.block_diag(0 * ee, G * p["J"] / L * ee))
+            k = np.kron(bar, sla.block_diag(E * p["A"] / L * ee, 0 * ee)) + kt
             m = np.kron(np.array([[2.0, 1.0], [1.0, 2.0]]) * L / 6 * (rho * p["A"] + p["NSM"]),
                         sla.block_diag(np.eye(3), np.zeros((3, 3))))
-            self.elements.append(_Element(c.id, c["PID"], (c["G1"], c["G2"]), k, m))
+            self.elements.append(_Element(c.id, c["PID"], (c["G1"], c["G2"]), k, m, kt=kt))
         bush = {c.id: c["K"] for c in bulk["PBUSH"]}
         for c in bulk["CBUSH"]:
             if c["CID"] != 0:
@@ -249,10 +281,10 @@ class Truth:
         points = [a + (b - a) * i / refine for i in range(refine + 1)]
         grids = [ga] + [self._new_grid(p) for p in points[1:-1]] + [gb]
         for i in range(refine):
-            k, m = _beam(points[i], points[i + 1], v, E, G, rho, sec)
+            k, m, kt = _beam(points[i], points[i + 1], v, E, G, rho, sec)
             t = sla.block_diag(_carry(wa if i == 0 else 0 * wa), _carry(wb if i == refine - 1 else 0 * wb))
             self.elements.append(_Element(c.id, c["PID"], (grids[i], grids[i + 1]),
-                                          t.T @ k @ t, t.T @ m @ t))
+                                          t.T @ k @ t, t.T @ m @ t, kt=t.T @ kt @ t))
 
     def _point_mass(self, eid, grid, mass, offset, inertia):
         t = _carry(offset)
@@ -266,11 +298,18 @@ class Truth:
             raise ValueError(f"no element with pid in {pids} or eid in {eids}")
         return chosen
 
-    def scale(self, pids=(), eids=(), stiffness=0.0, mass=0.0) -> Truth:
-        """Element stiffness (E and G, or spring k) × (1 + stiffness), its mass (density) × (1 + mass)."""
-        for e in self._select(pids, eids):
+    def scale(self, pids=(), eids=(), stiffness=0.0, mass=0.0, torsion=0.0) -> Truth:
+        """Element stiffness (E and G, or spring k) × (1 + stiffness), its mass (density) × (1 + mass);
+        ``torsion``: the torsional stiffness GJ alone of beams and rods × (1 + torsion) as well."""
+        chosen = self._select(pids, eids)
+        if torsion and not any(e.kt is not None for e in chosen):
+            raise ValueError(f"no beam or rod with pid in {pids} or eid in {eids}: no torsion to scale")
+        for e in chosen:
             e.k = e.k * (1 + stiffness)
             e.m = None if e.m is None else e.m * (1 + mass)
+            if e.kt is not None:
+                e.kt = e.kt * (1 + stiffness)
+                e.k, e.kt = e.k + torsion * e.kt, e.kt * (1 + torsion)
         return self
 
     def add_mass(self, node, m, offset=(0.0, 0.0, 0.0), inertia=None) -> Truth:
@@ -279,6 +318,16 @@ class Truth:
         self._point_mass(None, node, m, np.asarray(offset, dtype=np.float64),
                          np.zeros((3, 3)) if inertia is None else np.asarray(inertia, dtype=np.float64))
         return self
+
+    def add_mass_at(self, xyz, m) -> Truth:
+        """Point mass m (kg) at the truth grid at ``xyz`` (m, basic), also an internal grid
+        of a refined CBAR (e.g. an element's mid-point for ``refine=2``); none within 1e-9 m:
+        ValueError."""
+        ids = np.array(list(self.xyz))
+        dist = np.linalg.norm(np.array(list(self.xyz.values())) - np.asarray(xyz, dtype=np.float64), axis=1)
+        if dist.min() > 1e-9:
+            raise ValueError(f"no truth grid within 1e-9 m of {tuple(xyz)} (nearest {dist.min():.3g} m away)")
+        return self.add_mass(int(ids[np.argmin(dist)]), m)
 
     def ground_spring(self, node, k, components=(1, 2, 3)) -> Truth:
         """Springs k (N/m or N·m/rad) from the given components (1..6) of ``node`` to ground."""
@@ -324,11 +373,22 @@ class Truth:
         self.elements.append(_link(None, None, self.xyz[node], self.xyz[new], node, new, self.xyz[node], k6))
         return self
 
+    def frequency_law(self, law, pids=(), eids=()) -> Truth:
+        """Stiffness of the selected elements follows k(f) = k0 law(f) (``law``: hashable
+        callable of the frequency in Hz, e.g. :class:`PowerLaw`); each mode solves its
+        nonlinear eigenproblem by fixed point (:meth:`modes`)."""
+        for e in self._select(pids, eids):
+            e.law = law
+        return self
+
     def viscoelastic(self, pids=(), eids=(), exponent=0.0, f_ref_hz=1.0) -> Truth:
         """Stiffness of the selected elements follows k(f) = k0 (f / f_ref_hz)^exponent."""
-        for e in self._select(pids, eids):
-            e.visco = (float(exponent), float(f_ref_hz))
-        return self
+        return self.frequency_law(PowerLaw(float(exponent), float(f_ref_hz)), pids, eids)
+
+    def standard_linear_solid(self, pids=(), eids=(), k_ratio=0.0, f_c_hz=1.0) -> Truth:
+        """Stiffness of the selected elements follows k(f) = k0 (1 + r x / (1 + x)),
+        x = (f / f_c_hz)², r = ``k_ratio``: rising through f_c_hz, saturating at k0 (1 + r)."""
+        return self.frequency_law(StandardLinearSolid(float(k_ratio), float(f_c_hz)), pids, eids)
 
     # ----------------------------------------------------------------- solve
     def _rigid_map(self, pos, n):
@@ -349,7 +409,7 @@ class Truth:
 
     def _matrices(self):
         """X restricted to the kept coordinates, the dense kept-coordinate K parts
-        {visco key or None: K} (penalty α on the d coordinates in the None part) and M.
+        {law or None: K} (penalty α on the d coordinates in the None part) and M.
         SPC'd DoFs and coordinates with neither stiffness nor mass are removed."""
         pos = {g: i for i, g in enumerate(sorted(self.xyz))}
         n = 6 * len(pos)
@@ -357,7 +417,7 @@ class Truth:
         for e in self.elements:
             idx = np.concatenate([6 * pos[g] + np.arange(6) for g in e.grids])
             r, c = np.meshgrid(idx, idx, indexing="ij")
-            for target, values in ((parts.setdefault(e.visco, ([], [], [])), e.k), (mass, e.m)):
+            for target, values in ((parts.setdefault(e.law, ([], [], [])), e.k), (mass, e.m)):
                 if values is not None:
                     for lst, a in zip(target, (r, c, values)):
                         lst.append(a.ravel())
@@ -390,25 +450,45 @@ class Truth:
             mu, phi = sla.eigh(M, K + SIGMA * M, subset_by_index=[n - count, n - 1])
         return 1 / mu[::-1] - SIGMA, phi[:, ::-1] / np.sqrt(mu[::-1])
 
+    @staticmethod
+    def _follow(stiffness, M, lam, phi, f):
+        """Cheap fixed-point steps on one mode: at f, of the 3 eigenpairs of (K(f), M) nearest
+        λ (sparse shift-invert) the one most like the last shape (MAC); returns f and the
+        number of steps (at most 20)."""
+        for count in range(1, 21):
+            if lam <= 0:
+                return f, count - 1
+            w, v = spla.eigsh(stiffness(f), k=3, M=M, sigma=0.999 * lam)
+            j = np.argmax(np.abs(v.T @ (M @ phi)) / np.sqrt(np.sum(v * (M @ v), axis=0)))
+            lam, phi, f_old, f = w[j], v[:, j], f, np.sqrt(max(w[j], 0.0)) / (2 * np.pi)
+            if abs(f - f_old) <= VISCO_RTOL * f:
+                break
+        return f, count
+
     def modes(self, n: int, skip: int = 0):
         """Frequencies (Hz, (n,)) and mass-normalised shapes ((len(grid_ids), 6, n): T1..R3 in
         basic axes at the original grids ``grid_ids``) of modes skip+1 .. skip+n.
 
-        With viscoelastic elements each mode i solves f_i = f_i(K(f_i)) by fixed-point
-        iteration to ``VISCO_RTOL`` (skip the rigid-body modes); the iteration counts are left
-        in ``self.iterations``.
+        With frequency-dependent elements each mode i solves f_i = f_i(K(f_i)) by fixed-point
+        iteration to ``VISCO_RTOL`` (skip the rigid-body modes): sparse steps following the
+        mode (:meth:`_follow`), then dense solves of the lowest skip+i+1 modes until one moves f
+        by at most VISCO_RTOL (its mode skip+i+1 is the answer). The step counts of both are
+        left in ``self.iterations``.
         """
         X, parts, M = self._matrices()
         fixed = parts.pop(None)
+        sparse = (sp.csc_matrix(fixed), {law: sp.csc_matrix(k) for law, k in parts.items()}, sp.csc_matrix(M))
 
-        def stiffness(f):
-            return fixed + sum((f / f_ref) ** p * k for (p, f_ref), k in parts.items())
+        def stiffness(f, dense=True):
+            k0, laws = (fixed, parts) if dense else sparse[:2]
+            return k0 + sum(law(f) * k for law, k in laws.items())
 
         lam, phi = self._eig(fixed + sum(parts.values()), M, skip + n)  # plain model: k = k0
         lam, phi = lam[skip:], phi[:, skip:]
         self.iterations = []
         for i in range(n if parts else 0):
-            f, count = np.sqrt(max(lam[i], 0.0)) / (2 * np.pi), 0
+            f, count = self._follow(lambda f: stiffness(f, dense=False), sparse[2], lam[i], phi[:, i],
+                                    np.sqrt(max(lam[i], 0.0)) / (2 * np.pi))
             while True:
                 lam_i, phi_i = self._eig(stiffness(f), M, skip + i + 1)
                 f_new, count = np.sqrt(lam_i[-1]) / (2 * np.pi), count + 1
@@ -431,13 +511,16 @@ class Truth:
                          in zip(sensors.nodes, sensors.directions, sensors.rotational.astype(int))])
 
     def measure(self, sensors: Sensors, n_modes: int, noise_freq=0.002, noise_shape=0.01, seed=0,
-                skip=0) -> ModalData:
+                skip=0, damping=None, noise_damping=0.0) -> ModalData:
         """Modes skip+1 .. skip+n_modes at the sensors with multiplicative Gaussian noise:
         f (1 + noise_freq N(0,1)), each shape value (1 + noise_shape N(0,1)); largest
-        shape value positive."""
+        shape value positive. ``damping``: a uniform viscous ratio ζ of every mode, measured
+        as |ζ (1 + noise_damping N(0,1))| (drawn after the others: same f and shapes as without)."""
         f, shapes = self.modes(n_modes, skip)
         phi = self.at(sensors, shapes)
         phi = phi * np.sign(phi[np.argmax(np.abs(phi), axis=0), np.arange(n_modes)])
         rng = np.random.default_rng(seed)
         f = f * (1 + noise_freq * rng.standard_normal(f.shape))
-        return ModalData(f, phi * (1 + noise_shape * rng.standard_normal(phi.shape)), sensors)
+        phi = phi * (1 + noise_shape * rng.standard_normal(phi.shape))
+        zeta = None if damping is None else np.abs(damping * (1 + noise_damping * rng.standard_normal(f.shape)))
+        return ModalData(f, phi, sensors, damping_ratios=zeta)

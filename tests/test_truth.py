@@ -7,7 +7,17 @@ import pytest
 
 import jaxfem
 from benchmarks.frames import frame_bdf
-from benchmarks.truth import Truth
+from benchmarks.truth import StandardLinearSolid, Truth
+from benchmarks.truth_cases import (
+    CASES,
+    HARD_CASES,
+    NOISE_D,
+    NOISE_F,
+    NOISE_S,
+    Case,
+    found_hard,
+    measure_hard,
+)
 from identification import ModalData, Sensors, observation_matrix
 from jaxfem.io import read_bdf, read_bdf_text
 
@@ -109,11 +119,11 @@ def test_frame_effects():
 
 
 def test_viscoelastic(garteur):
-    f0, phi0 = garteur[1].modes(14, skip=N_RIGID)
+    f0, _ = garteur[1].modes(14, skip=N_RIGID)
     flat = Truth.from_bdf(GARTEUR, refine=1).viscoelastic(pids=(11, 12, 13, 21, 22, 23), exponent=0.0, f_ref_hz=20.0)
-    f, phi = flat.modes(14, skip=N_RIGID)
+    f, _ = flat.modes(14, skip=N_RIGID)
     np.testing.assert_allclose(f, f0, rtol=1e-10)  # rounding: K summed in another order
-    assert flat.iterations == [1] * 14
+    assert flat.iterations == [2] * 14  # one sparse step, one dense
     p, f_ref, wings = 0.1, 20.0, (11, 12, 13, 21, 22, 23)
     visco = Truth.from_bdf(GARTEUR, refine=1).viscoelastic(pids=wings, exponent=p, f_ref_hz=f_ref)
     f, _ = visco.modes(14, skip=N_RIGID)
@@ -163,3 +173,153 @@ def test_cantilever_against_beam_theory():
     np.testing.assert_allclose(f, exact, rtol=1e-4)  # rotary inertia: (r/L)² ~ 1e-6
     tip = shapes[list(truth.grid_ids).index(2), :3]
     assert abs(tip[2, 0]) > 1e3 * abs(tip[1, 0]) and abs(tip[1, 1]) > 1e3 * abs(tip[2, 1])
+
+
+# ------------------------------------------------------------- hard-case features
+E_AL, RHO_AL, NU_AL = 7.0e10, 2700.0, 0.3
+
+
+def _cantilever(J=4.0e-13, L=1.0, n_bars=1):
+    """An aluminium cantilever along x (v = z), clamped at grid 1, in ``n_bars`` CBARs:
+    bending in z 4.0, 25 Hz, in y 8.1 Hz; torsion 15.8 Hz (J = 4e-13: its third mode)."""
+    grids = "".join(f"GRID,{i + 1},,{L * i / n_bars},0.,0.\n" for i in range(n_bars + 1))
+    bars = "".join(f"CBAR,{i + 1},1,{i + 1},{i + 2},0.,0.,1.\n" for i in range(n_bars))
+    return (f"MAT1,1,{E_AL:.6e},,{NU_AL},{RHO_AL}\nPBAR,1,1,1.0e-4,2.0e-10,8.0e-10,{J:.6e}\n"
+            f"{grids}{bars}SPC1,1,123456,1\n")
+
+
+def test_torsion_scaling():
+    """Torsion alone: only the torsion mode moves, by √(1 + torsion) (f ∝ √(GJ)); the
+    closed form f = √(GJ / ρ(I1 + I2)) / 4L; stiffness and torsion factors compose."""
+    f0, shapes = Truth.from_bdf_text(_cantilever(), refine=16).modes(4)
+    tip = np.abs(shapes[1])  # grid 2: the tip
+    assert tip[3, 2] > 1e6 * max(tip[:3, 2].max(), tip[4:, 2].max())  # mode 3 twists the tip, nothing else
+    assert all(tip[3, i] < 1e-6 * tip[:, i].max() for i in (0, 1, 3))  # the others do not twist it
+    G = E_AL / (2 * (1 + NU_AL))
+    np.testing.assert_allclose(f0[2], np.sqrt(G * 4.0e-13 / (RHO_AL * 1.0e-9)) / 4, rtol=1e-3)  # 16 linear elements
+    f, _ = Truth.from_bdf_text(_cantilever(), refine=16).scale(pids=(1,), torsion=-0.15).modes(4)
+    np.testing.assert_allclose(f[2], f0[2] * np.sqrt(0.85), rtol=1e-11)
+    np.testing.assert_allclose(f[[0, 1, 3]], f0[[0, 1, 3]], rtol=1e-9)
+    both, _ = Truth.from_bdf_text(_cantilever(), refine=16).scale(eids=(1,), stiffness=0.2, torsion=-0.15).modes(4)
+    np.testing.assert_allclose(both, f0 * np.sqrt(1.2 * np.array([1.0, 1.0, 0.85, 1.0])), rtol=1e-11)
+    with pytest.raises(ValueError, match="no torsion"):
+        Truth.from_bdf_text(FRAME).scale(eids=(34,), torsion=0.1)  # a CELAS2
+
+
+def test_add_mass_at():
+    """A mass at a CBAR's mid-point (an internal grid for refine=2) is the mass on the grid of
+    the same beam cut in two CBARs; off a grid: refused."""
+    m = 0.01
+    truth = Truth.from_bdf_text(_cantilever(), refine=2)
+    mid = [g for g in truth.xyz if g not in truth.grid_ids]
+    assert len(mid) == 1 and np.allclose(truth.xyz[mid[0]], [0.5, 0.0, 0.0], atol=1e-15)
+    f, _ = truth.add_mass_at((0.5, 0.0, 0.0), m).modes(4)
+    by_id, _ = Truth.from_bdf_text(_cantilever(), refine=2).add_mass(mid[0], m).modes(4)
+    np.testing.assert_array_equal(f, by_id)
+    cut, _ = Truth.from_bdf_text(_cantilever(n_bars=2), refine=1).add_mass(2, m).modes(4)
+    np.testing.assert_allclose(f, cut, rtol=1e-10)
+    f0, _ = Truth.from_bdf_text(_cantilever(), refine=2).modes(4)
+    assert np.all(f[[0, 1, 3]] < f0[[0, 1, 3]] * 0.995)  # bending: lower (0.8 %, 0.8 %, 3.7 %)
+    np.testing.assert_allclose(f[2], f0[2], rtol=1e-12)  # torsion: a point mass on the axis adds no inertia
+    for refine, point in ((2, (0.25, 0.0, 0.0)), (1, (0.5, 0.0, 0.0)), (2, (0.5, 0.0, 1e-8))):
+        with pytest.raises(ValueError, match="no truth grid within"):
+            Truth.from_bdf_text(_cantilever(), refine=refine).add_mass_at(point, m)
+
+
+def test_standard_linear_solid():
+    """k(f) = k0 (1 + r x / (1 + x)), x = (f/f_c)²: r = 0 is the nominal; f ≫ f_c the
+    stiffness × (1 + r); between, each mode is that of the elastic model scaled by the law
+    at its own frequency, above the nominal and below (1 + r)."""
+    pids, r = (1, 2, 9), 0.5
+    assert StandardLinearSolid(r, 40.0)(40.0) == 1 + r / 2 and StandardLinearSolid(r, 40.0)(0.0) == 1.0
+    f0, _ = Truth.from_bdf_text(FRAME).modes(12)
+    flat = Truth.from_bdf_text(FRAME).standard_linear_solid(pids=pids, k_ratio=0.0, f_c_hz=10.0)
+    np.testing.assert_allclose(flat.modes(12)[0], f0, rtol=1e-12)
+    assert flat.iterations == [2] * 12
+    high, _ = Truth.from_bdf_text(FRAME).standard_linear_solid(pids=pids, k_ratio=r, f_c_hz=1e-6).modes(12)
+    stiff, _ = Truth.from_bdf_text(FRAME).scale(pids=pids, stiffness=r).modes(12)
+    np.testing.assert_allclose(high, stiff, rtol=1e-9)
+    sls = Truth.from_bdf_text(FRAME).standard_linear_solid(pids=pids, k_ratio=r, f_c_hz=20.0)
+    f, _ = sls.modes(12)
+    assert np.all((f > f0 * (1 + 1e-4)) & (f < stiff * (1 - 1e-4))) and max(sls.iterations) <= 20
+    law = StandardLinearSolid(r, 20.0)
+    for i in (0, 5, 11):
+        scaled = Truth.from_bdf_text(FRAME).scale(pids=pids, stiffness=law(f[i]) - 1)
+        np.testing.assert_allclose(scaled.modes(i + 1)[0][i], f[i], rtol=1e-8)
+
+
+def test_uniform_damping():
+    """ζ (1 + σ N(0,1)) per mode, drawn after the frequency and shape noise (which stay as
+    without damping): mean ≈ ζ, scatter ≈ σ."""
+    truth = Truth.from_bdf_text(_cantilever(), refine=16)
+    sensors = Sensors.from_components([2, 2, 2, 2], [1, 2, 3, 4])
+    n, zeta, sigma = 40, 0.005, 0.1
+    plain = truth.measure(sensors, n, seed=3)
+    damped = truth.measure(sensors, n, seed=3, damping=zeta, noise_damping=sigma)
+    np.testing.assert_array_equal(plain.damping_ratios, 0.0)
+    np.testing.assert_array_equal(damped.frequencies_hz, plain.frequencies_hz)
+    np.testing.assert_array_equal(damped.shapes, plain.shapes)
+    rng = np.random.default_rng(3)
+    rng.standard_normal(n), rng.standard_normal((len(sensors), n))
+    np.testing.assert_allclose(damped.damping_ratios, zeta * (1 + sigma * rng.standard_normal(n)), rtol=1e-15)
+    ratio = damped.damping_ratios / zeta - 1
+    assert abs(ratio.mean()) < 4 * sigma / np.sqrt(n) and 0.7 * sigma < ratio.std() < 1.3 * sigma
+    exact = truth.measure(sensors, n, seed=3, damping=zeta)
+    np.testing.assert_array_equal(exact.damping_ratios, zeta)
+
+
+@pytest.mark.parametrize("case", HARD_CASES, ids=lambda c: c.name)
+def test_hard_case_measures(case):
+    """Each hard case measures its 14 modes at its sensors, with its stated noise and damping."""
+    text, data, params, noise = measure_hard(case)
+    assert text.startswith("$ GARTEUR") and params is not None
+    assert data.frequencies_hz.shape == (14,) and data.shapes.shape == (len(data.sensors), 14)
+    assert np.all(np.diff(data.frequencies_hz) > -0.05 * data.frequencies_hz[1:]) and data.frequencies_hz[0] > 5.0
+    assert (noise.frequency, noise.relative, noise.damping) == case.noise
+    if case.sensors:
+        assert len(data.sensors) == 3 * len(case.sensors) and not set(data.sensors.nodes.tolist()) & set(range(1001, 1032))
+    else:
+        assert len(data.sensors) == 24
+    if case.damping is None:
+        np.testing.assert_array_equal(data.damping_ratios, 0.0)
+    else:
+        assert abs(np.mean(data.damping_ratios) / case.damping - 1) < 4 * case.noise[2] / np.sqrt(14)
+
+
+def test_hard_cases_stated():
+    assert {c.name for c in HARD_CASES}.isdisjoint(c.name for c in CASES) and len(CASES) == 11
+    noisy = next(c for c in HARD_CASES if c.name == "garteur-noisy-mass")
+    assert noisy.noise == (0.01, 0.03, NOISE_D)
+    assert all(c.noise == (NOISE_F, NOISE_S, NOISE_D) for c in HARD_CASES if c is not noisy)
+    assert all(c.outcome in ("effect", "outside", "none_needed", "any") for c in HARD_CASES)
+    assert all(c.accept or c.effects for c in HARD_CASES if c.outcome == "effect")
+
+
+def _item(kind, nodes=(), pids=()):
+    return {"kind": kind, "nodes": list(nodes), "pids": list(pids)}
+
+
+def test_found_hard():
+    """The acceptance rules on made-up reports."""
+    two = next(c for c in HARD_CASES if c.effects)
+    joint, mass = _item("joint", (3001, 2000, 2001)), _item("added_mass", (7001,))
+    report = {"outcome": "effect", "declared": [joint, mass], "effects": [_item("added_mass", (7002,))], "ties": []}
+    assert found_hard(report, two)
+    assert found_hard(report | {"declared": [joint], "ties": [mass]}, two)
+    assert not found_hard(report | {"declared": [joint]}, two)
+    assert not found_hard(report | {"outcome": "partial"}, two)
+    mid = Case("mid", "garteur", lambda t: t, accept=(("added_mass", (3010,)), ("added_mass", (3011,))))
+    assert found_hard({"outcome": "effect", "effects": [_item("added_mass", (3011,))], "ties": []}, mid)
+    assert found_hard({"outcome": "effect", "effects": [_item("added_mass", (3009,))],
+                       "ties": [_item("added_mass", (3010,))]}, mid)
+    assert not found_hard({"outcome": "effect", "effects": [_item("added_mass", (3012,))], "ties": []}, mid)
+    tape = Case("tape", "garteur", lambda t: t, accept=(("stiffness", (62,)),))
+    assert found_hard({"outcome": "effect", "effects": [_item("stiffness", (), (62,))], "ties": []}, tape)
+    assert not found_hard({"outcome": "effect", "effects": [_item("stiffness", (62,), (61,))], "ties": []}, tape)
+    outside = Case("out", "garteur", lambda t: t, outcome="outside")
+    assert [found_hard({"outcome": o}, outside) for o in ("unexplained", "partial", "cannot_localise", "effect",
+                                                          "none_needed")] == [True, True, True, False, False]
+    damped = Case("damped", "garteur", lambda t: t, outcome="any", damping=0.005)
+    assert found_hard({"outcome": "effect", "damping": {"outcome": "none_needed"}}, damped)
+    assert not found_hard({"outcome": "none_needed", "damping": {"outcome": "effect"}}, damped)
+    assert not found_hard({"outcome": "none_needed"}, damped)
