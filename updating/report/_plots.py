@@ -159,7 +159,7 @@ def plot_convergence(history, names: Sequence[str], path: str | Path, active=Non
 
 def plot_damping(damping: dict, path: str | Path) -> Path:
     """Modal damping ratio ζ [%] per mode against its test frequency: measured (with its
-    stated σ), Rayleigh damping alone fitted, and with the first-ranked region's loss
+    stated σ), uniform damping (Rayleigh and a constant loss factor) fitted, and with the first-ranked region's loss
     factor (``damping``: the report of :func:`updating.diagnose_damping`). **Returns:** the path."""
     rows = damping["modes"]
     f = np.array([r["f_test_hz"] for r in rows])
@@ -167,7 +167,7 @@ def plot_damping(damping: dict, path: str | Path) -> Path:
     fig = _figure(7.0, 4.0)
     ax = fig.add_subplot()
     ax.errorbar(f, z, yerr=z * damping["noise_pct"] / 100, fmt="o", color="black", capsize=3, label="measured (±σ)")
-    ax.plot(f, 100 * np.array([r["zeta_baseline"] for r in rows]), "s--", color="tab:orange", label="Rayleigh alone")
+    ax.plot(f, 100 * np.array([r["zeta_baseline"] for r in rows]), "s--", color="tab:orange", label="uniform damping (Rayleigh + η0)")
     if damping["effects"] and rows[0].get("zeta_best") is not None:
         top = damping["effects"][0]
         ax.plot(f, 100 * np.array([r["zeta_best"] for r in rows]), "^-", color="tab:blue",
