@@ -17,7 +17,7 @@ import numpy as np
 
 from ._assembly import finalize_dofs
 from ._constraints import rbe3_matrix, undetermined
-from ._model import COMPONENTS, STRUCTURAL_BLOCKS, Bushes, DofMap, Masses, Model, Springs
+from ._model import COMPONENTS, STIFFNESS_BLOCKS, STRUCTURAL_BLOCKS, Bushes, DofMap, Masses, Model, Springs
 
 
 def _append(a, b) -> jax.Array:
@@ -174,7 +174,7 @@ def add_bush(model: Model, node_a: int, node_b: int, k: Sequence[float], eid: in
         axes=_append(b.axes, np.eye(3)[None]), k=_append(b.k, np.reshape(k, (1, 6))),
         s=_append(b.s, [s]), k_scale=_append(b.k_scale, [1.0]),
     )
-    return eqx.tree_at(lambda m: m.bushes, model, new), eid
+    return _law_padded(eqx.tree_at(lambda m: m.bushes, model, new)), eid
 
 
 def add_ground_springs(model: Model, node: int, k: Sequence[float], components: Sequence[int] = (1, 2, 3),
@@ -191,7 +191,18 @@ def add_ground_springs(model: Model, node: int, k: Sequence[float], components: 
         components=np.concatenate([s.components, np.array([[c, 0] for c in components], dtype=np.int64).reshape(n, 2)]),
         k=_append(s.k, np.broadcast_to(k, (n,))), k_scale=_append(s.k_scale, np.ones(n)),
     )
-    return eqx.tree_at(lambda m: m.springs, model, new), eids
+    return _law_padded(eqx.tree_at(lambda m: m.springs, model, new)), eids
+
+
+def _law_padded(model: Model) -> Model:
+    """A frequency law's weights (:class:`jaxfem.Viscoelastic`) padded with zeros over the
+    elements a block gained: they are not in the layer."""
+    law = model.viscoelastic
+    if law is None:
+        return model
+    sizes = [len(getattr(model, name).ids) for name in STIFFNESS_BLOCKS]
+    weights = tuple(jnp.concatenate([w, jnp.zeros(n - w.shape[0], w.dtype)]) for w, n in zip(law.weights, sizes))
+    return eqx.tree_at(lambda m: m.viscoelastic.weights, model, weights)
 
 
 def add_mass(model: Model, node: int, m: float, eid: int | None = None, inertia=None,
