@@ -116,6 +116,59 @@ def test_added_mass(model):
     assert np.all(_freqs(heavier) <= _freqs(model) * (1 + 1e-12))
 
 
+def test_a_spring_to_ground_on_one_translation(model):
+    """A vertical support is not springs in all three translations (issue 46): a z-only
+    spring stiffens the modes moving the grid in z and leaves a y-only one's alone."""
+    z = parse_effect("boundary_spring:node=14;components=3")
+    assert z == Effect("boundary_spring", nodes=(14,), components=(3,)) and z.to_json()["components"] == [3]
+    k = 1e7
+    stiff = z.updated([0.0]) if z.values else Effect("boundary_spring", nodes=(14,), components=(3,), values={"k": k})
+    added = stiff.apply(model)
+    s = added.springs
+    new = np.flatnonzero(~np.isin(s.ids, model.springs.ids))
+    assert len(new) == 1 and s.components[new[0], 0] == 3 and float(s.k[new[0]]) == k
+    every = Effect("boundary_spring", nodes=(14,), values={"k": k}).apply(model)
+    assert len(every.springs.ids) - len(model.springs.ids) == 3
+    f0, fz, fxyz = _freqs(model), _freqs(added), _freqs(every)
+    assert np.all(fz >= f0 * (1 - 1e-12)) and np.all(fxyz >= fz * (1 - 1e-12)) and np.any(fxyz > fz * 1.01)
+    assert "on translation z of grid 14 only" in stiff.advice([0.1])
+    with pytest.raises(ValueError, match="components"):
+        Effect("boundary_spring", nodes=(14,), components=(4,))
+
+
+def test_the_whole_structure_and_groups_together_are_candidates(model):
+    """A global error is the commonest of all: stiffness and mass of the whole structure,
+    and of the best-screening groups together, join the group candidates (issue 46)."""
+    from updating.diagnosis._candidates import Candidate, _wider
+
+    groups = []
+    for p, score in ((3, 0.9), (5, 0.8), (1, 0.1)):
+        c = Candidate(GroupStiffness(pids=(p,)), None)
+        c.screen = score
+        groups.append(c)
+    wider = {(e.kind, e.pids): e.where() for e in _wider(model, groups)}
+    assert wider[("stiffness", tuple(stiffness_pids(model)))] == "the whole structure"
+    assert ("mass", tuple(p for p in stiffness_pids(model) if p in structural_pids(model))) in wider
+    assert wider[("stiffness", (3, 5))] == "pids 3, 5 together" and ("stiffness", (1, 3, 5)) in wider
+    beam = jaxfem.build_model(read_bdf_text("\n".join(
+        [f"GRID,{i + 1},,{0.1 * i:.1f},0.,0." for i in range(9)] + [f"CBAR,{i + 1},{1 + i // 4},{i + 1},{i + 2},0.,1.,0."
+                                                                     for i in range(8)]
+        + ["PBAR,1,1,1.e-4,1.e-8,2.e-8,1.e-8", "PBAR,2,1,2.e-4,2.e-8,3.e-8,2.e-8", "MAT1,1,70.E9,,0.3,2700.",
+           "PARAM,COUPMASS,1"])))
+    whole = Effect("stiffness", pids=tuple(stiffness_pids(beam)), values={"alpha": 0.05}).apply(beam)
+    np.testing.assert_allclose(_freqs(whole, 16)[6:], _freqs(beam, 16)[6:] * np.sqrt(1.05), rtol=1e-9)  # K → 1.05 K
+
+
+def test_a_frequency_law_survives_elements_added_after_it(model):
+    """A diagnosis round after a declared law adds dormant springs and bushes: the law's
+    weights grow with the blocks (the new elements are not in the layer), its modes unchanged."""
+    law = FrequencyDependentStiffness(pids=(3,), alpha=0.0, a=0.1, f_ref_hz=50.0).apply(model)
+    more, _ = jaxfem.add_ground_springs(law, 14, 0.0, (1, 2, 3))
+    more, _ = jaxfem.add_bush(more, 14, 15, [0.0] * 6)
+    assert [w.shape[0] for w in more.viscoelastic.weights][2:4] == [len(more.springs.ids), len(more.bushes.ids)]
+    np.testing.assert_allclose(_freqs(more, 8), _freqs(law, 8), rtol=1e-12)
+
+
 def test_parse_effect():
     assert parse_effect("joint:node=3007;pids=21,22") == Effect("joint", pids=(21, 22), nodes=(3007,))
     assert parse_effect("mass:eids=201-203,207").eids == (201, 202, 203, 207)
@@ -173,7 +226,8 @@ def test_factory_builds_the_typed_effect_and_round_trips(model):
         again = Effect(effect.kind, **effect.location(), values=effect.values, label=effect.label)
         assert type(again) is type(effect) and again == effect
         row = effect.to_json()
-        assert list(row) == ["kind", "pids", "eids", "nodes", "where", "parameters"]
+        assert list(row) == ["kind", "pids", "eids", "nodes", "where", "parameters"] + (
+            ["components"] if effect.kind == "boundary_spring" else [])
         assert row["parameters"] == effect.values and row["where"] == effect.where()
     assert Effect("joint", nodes=(6001,), values={"k_trans": 1e8, "k_rot": 4e4}) == Joint(nodes=(6001,), k_trans=1e8, k_rot=4e4)
     assert Effect("stiffness", pids=(3,)).values == {} and Effect("mass", pids=(1, 2)).where() == "pid 1, 2"
@@ -191,7 +245,7 @@ def test_candidates_by_kind(model):
     whole = {e.pids[0] for e in stiffness if not e.eids}
     assert whole == set(stiffness_pids(model)) >= set(range(1, 9))  # the 8 beam groups and the rest
     assert {e.pids[0] for e in stiffness if e.eids} <= set(structural_pids(model))  # halves: beams and rods
-    assert {e.pids[0] for e in FrequencyDependentStiffness.candidates(model)} == whole
+    assert {e.pids[0] for e in FrequencyDependentStiffness.candidates(model)} == whole  # none above half the structure
     assert not any(e.eids for e in FrequencyDependentStiffness.candidates(model))
     assert {e.pids[0] for e in GroupMass.candidates(model)} == set(structural_pids(model)) & whole
     joints = Joint.candidates(model)

@@ -1,5 +1,5 @@
 """The evidence of a candidate effect: the Laplace approximation against the exact
-marginal likelihood of a linear-Gaussian model, and the verdict's three outcomes."""
+marginal likelihood of a linear-Gaussian model, and the verdict's states."""
 
 import numpy as np
 
@@ -31,32 +31,94 @@ def test_laplace_is_exact_for_a_linear_gaussian_model():
     assert log_evidence(None, np.inf, None, mu, sd, sigma2)[0] == -np.inf  # a failed fit ranks last
 
 
-def _result(where="node 214", chi2=1.1, log_z=250.0):
+def _result(where="node 214", chi2=1.1, log_z=250.0, passed=True, worse=()):
     from updating.diagnosis import CandidateResult, Checks
 
     effect = updating.Effect("added_mass", nodes=(int(where.split()[-1]),), values={"m": 0.4})
-    return CandidateResult(effect, 1, 0.97, log_z, 0.0, (0.1,), "add 0.4 kg (±0.05 kg) at grid 214", 0.0, None, None,
-                           chi2, 0.9, 0.21, 3, None, None, None, (), True, Checks(*[True] * 5), True)
+    checks = Checks(True, True, passed, True, True, not worse)
+    return CandidateResult(
+        effect=effect, rank=1, posterior=0.97, log_evidence=log_z, log_occam=0.0, theta_sd=(0.1,),
+        advice="add 0.4 kg (±0.05 kg) at grid 214", delta_aic=0.0, score=None, screen=None, chi2_per_row=chi2,
+        heldout_rms_freq_dev_pct_before=0.9, heldout_rms_freq_dev_pct_after=0.21, heldout_modes_compared=3,
+        heldout_worse_modes=tuple(worse), heldout_mean_mac_before=None, heldout_mean_mac_after=None,
+        rms_freq_dev_pct_after=None, plausibility=(), cross_validated=True, checks=checks,
+        warranted=passed and not worse)
 
 
-def _verdict(outcome, chi2_base, effects=(), ties=()):
+def _fit(freq_dev_pct, chi2_freq, chi2_shape, rows=(10, 100), sigma2=1.0):
+    from updating.diagnosis import Fit
+
+    n_f, n_s = rows
+    d = np.asarray(freq_dev_pct, float) / 100
+    return Fit(np.zeros(1), (chi2_freq * n_f + chi2_shape * n_s) * sigma2, chi2_freq * n_f * sigma2,
+               chi2_shape * n_s * sigma2, d, np.ones(len(d)), None)
+
+
+def _state(outcome, chi2_base, effects=(), ties=(), declared=(), final=None, base=None, withdrawn=None):
+    """The state the numbers give and its sentence."""
     from updating.diagnosis import Baseline
-    from updating.diagnosis._verdict import verdict
+    from updating.diagnosis._verdict import state, verdict
 
-    return verdict(outcome, tuple(effects), tuple(ties), Baseline((), 1.0, 0.9, 0.9, 0.9, chi2_base, 1.0, 1.0))
+    b = Baseline((), 1.0, 0.9, 0.9, 0.9, chi2_base, 1.0, 1.0)
+    final = final or base
+    s = state(outcome, tuple(effects), tuple(declared), base, final)
+    return s, verdict(s, tuple(effects), tuple(ties), b, tuple(declared), final, base, withdrawn)
 
 
-def test_verdict_says_what_to_do_or_that_nothing_single_explains_the_data():
+NOISE_F = 0.002
+AT_NOISE = _fit(np.full(10, 0.2), 1.0, 1.0)  # Δf at 1σ in every mode
+UNDERSTATED = _fit(np.resize([1.0, -1.0], 10), 25.0, 9.0)  # 5σ in every mode alike: noise understated
+TWO_MODES_OFF = _fit([0.2, -0.2, 3.0, 0.2, -0.2, 0.2, -2.5, 0.2, -0.2, 0.2], 38.0, 6.0)
+
+
+def test_remainder_tells_noise_from_modes_left_off():
+    from updating.diagnosis._evidence import remainder
+
+    r = remainder(AT_NOISE, 1.0, NOISE_F, (10, 100))
+    assert r.at_noise and r.noise_like and r.off == () and r.chi2_per_row == pytest.approx(1.0)
+    u = remainder(UNDERSTATED, 1.0, NOISE_F, (10, 100))
+    assert not u.at_noise and u.noise_like and u.freq_scale == pytest.approx(5.0) and u.shape_scale == pytest.approx(3.0)
+    t = remainder(TWO_MODES_OFF, 1.0, NOISE_F, (10, 100))
+    assert not t.noise_like and [j for j, _ in t.off] == [3, 7] and t.off[0][1] == pytest.approx(3.0)
+
+
+def test_each_verdict_state_from_its_numbers():
+    """One sentence per state, derived from the numbers (issue 46, item 5)."""
+    from updating.diagnosis._evidence import remainder
+    from updating.diagnosis._verdict import Declared, Withdrawn
+
+    left = lambda f: remainder(f, 1.0, NOISE_F, (10, 100))  # noqa: E731
     e = _result()
-    assert _verdict("effect", 30.0, [e]) == (
-        "Add 0.4 kg (±0.05 kg) at grid 214: held-out frequency error 0.90 % → 0.21 % (posterior probability 0.97).")
-    tie = _result("node 215")
-    assert "cannot tell it apart from node 215" in _verdict("effect", 30.0, [e], [tie])
-    assert "more than this one effect" in _verdict("effect", 30.0, [_result(chi2=9.0)])
-    text = _verdict("unexplained", 417.0, [_result(chi2=300.0)])
-    assert text.startswith("No single effect explains the data") and "417" in text and "model form" in text
-    assert "added_mass at node 214" in text  # the best partial candidate
-    assert _verdict("none_needed", 0.9).startswith("No extra effect is warranted")
+    one = (Declared(1, e, None),)
+    s, text = _state("effect", 30.0, [e], declared=one, final=left(AT_NOISE), base=left(TWO_MODES_OFF))
+    assert s == "effect" and text == (
+        "Add 0.4 kg (±0.05 kg) at grid 214: held-out frequency error 0.90 % → 0.21 % (posterior probability 0.97). "
+        "With it the model explains the data to the stated noise (χ² per row 1.00).")
+    s, text = _state("effect", 30.0, [e], [_result("node 215")], one, left(UNDERSTATED), left(TWO_MODES_OFF))
+    assert s == "effect" and "cannot tell the last from node 215" in text
+    assert "spread over all modes like noise" in text and "frequencies ×5.0, shapes ×3.0" in text
+    assert "more than" not in text and "missing" not in text
+    s, text = _state("none_needed", 30.0, [e], declared=one, final=left(TWO_MODES_OFF), base=left(TWO_MODES_OFF))
+    assert s == "partial" and "Partially explained: modes 3 (+3.00 %), 7 (−2.50 %)".replace("−", "-") in text
+    s, text = _state("none_needed", 1.0, [_result(chi2=0.9, passed=False)], base=left(AT_NOISE))
+    assert s == "none_needed" and text.startswith("No extra effect is warranted: the baseline explains the data")
+    assert "most probable candidate, added_mass at node 214 (χ²/row 0.90), is not confirmed: it does not lower "            "the held-out frequency error beyond noise" in text
+    s, text = _state("none_needed", 17.0, [_result(chi2=16.0, log_z=2.0, passed=False)], base=left(UNDERSTATED))
+    assert s == "none_needed" and "misfit (χ² per row 17.0) is spread over all modes like noise" in text
+    s, text = _state("none_needed", 30.0, [_result(chi2=1.2, worse=(12,))], base=left(TWO_MODES_OFF))
+    assert s == "unconfirmed" and text.startswith("added_mass at node 214 fits the data to the stated noise")
+    assert "held-out modes worse beyond noise (mode 12)" in text and "outside" not in text
+    s, text = _state("none_needed", 417.0, [_result(chi2=300.0, passed=False)], base=left(TWO_MODES_OFF))
+    assert s == "unexplained" and text.startswith("No effect in the library explains the data") and "417" in text
+    assert "model form" in text and "added_mass at node 214 (χ²/row 300.0)" in text and "modes 3 (+3.00 %)" in text
+    ties = [_result("node 230", log_z=249.5), _result("node 301", log_z=249.8)]
+    s, text = _state("cannot_localise", 30.0, [e], ties, base=left(TWO_MODES_OFF))
+    assert s == "cannot_localise" and "equally well at node 214, node 230, node 301" in text
+    w = Withdrawn(e, "its confirming update made passive mode 12 (-0.06 % → -6.87 %) worse beyond 2σ of the "
+                     "frequency noise")
+    s, text = _state("none_needed", 417.0, [_result(chi2=300.0, passed=False)], base=left(TWO_MODES_OFF), withdrawn=w)
+    assert s == "unexplained" and text.endswith("added_mass at node 214 was withdrawn: its confirming update made "
+                                                "passive mode 12 (-0.06 % → -6.87 %) worse beyond 2σ of the frequency noise.")
 
 
 def test_scan_start_refines_the_first_factor_about_the_best_point(monkeypatch):

@@ -52,7 +52,12 @@ def _print_diagnosis(rep: dict) -> None:
                    f"{_fmt(e['heldout_rms_freq_dev_pct_after'], '<6.2f')} {_fmt(e['heldout_mean_mac_after'], '>6.3f')}"
                    f"  {'yes' if e['warranted'] else 'no'}{notes}")
     typer.echo(f"(posterior over the candidates and the baseline, {rep['baseline_posterior']:.3f}; ln B: log Bayes "
-               f"factor against the baseline; noise scaled by {rep['noise_scale']:.3g})")
+               f"factor against the baseline at the stated noise; the misfit's noise scale {rep['noise_scale']:.3g})")
+    for d in rep["declared"]:
+        typer.echo(f"declared in round {d['round']}: {d['kind']} at {d['where']} (held-out RMS Δf "
+                   f"{_fmt(d['heldout_rms_freq_dev_pct_before'], '.2f')} % → {_fmt(d['heldout_rms_freq_dev_pct_after'], '.2f')} %)")
+    if rep["withdrawn"]:
+        typer.echo(f"withdrawn: {rep['withdrawn']['kind']} at {rep['withdrawn']['where']}: {rep['withdrawn']['reason']}")
     if "damping" in rep:
         _print_damping(rep["damping"])
     typer.echo(rep["verdict"])
@@ -60,8 +65,8 @@ def _print_diagnosis(rep: dict) -> None:
 
 def _print_damping(d: dict) -> None:
     b = d["baseline"]
-    typer.echo(f"damping (loss factor of a region beyond Rayleigh, {len(d['modes'])} modes, {d['regions_fitted']} "
-               f"regions): Rayleigh alone χ²/row {b['chi2_per_row']:.2f}, held-out ζ error "
+    typer.echo(f"damping (loss factor of a region beyond uniform damping, {len(d['modes'])} modes, {d['regions_fitted']} "
+               f"regions): uniform damping (Rayleigh + η0) χ²/row {b['chi2_per_row']:.2f}, held-out ζ error "
                f"{b['heldout_rms_zeta_dev_pct']:.1f} %")
     typer.echo(f"{'rank':>4} {'region':<44} {'η':>14} {'posterior':>9} {'ln B':>8} {'χ²/row':>8} "
                f"{'held-out ζ err [%]':>19}  declared")
@@ -196,7 +201,7 @@ def diagnosis(model, test, params, *, model_name: str, test_name: str, json_out:
     ``gmap``: the test geometry's map onto the model; ``test_content``: what was read
     from the test file (:func:`identification.read_uff`), for the 3-D view's test nodes and lines)."""
     from .. import json_safe
-    from ..diagnosis import DiagnoseOptions, add_effect, diagnose
+    from ..diagnosis import DiagnoseOptions, diagnose
     from ..report import write_report
 
     def say(line: str) -> None:
@@ -217,19 +222,8 @@ def diagnosis(model, test, params, *, model_name: str, test_name: str, json_out:
     if gmap is not None:
         rep["test_geometry"] = gmap.to_json()
     _print_diagnosis(rep)
-    confirmation = None
-    if diag.best is not None:
-        typer.echo(f"adding {diag.best.kind} at {diag.best.where()} and updating again "
-                   "(passive modes held out of the fit):")
-
-        def progress(p) -> None:
-            typer.echo(f"[update] iteration {p.detail.iteration:3d}  cost {p.detail.cost:.4e}", err=True)
-
-        try:
-            confirmation = add_effect(model, test, diag.best, params, progress=progress,
-                                      noise=options.noise)
-        except ValueError as err:
-            fail(f"cannot add {diag.best.kind} at {diag.best.where()} to {model_name}: {err}")
+    confirmation = diag.confirmation
+    if confirmation is not None:
         rep["after"] = confirmation.to_json()
         _print_confirmation(rep["after"])
     if frf_path is not None and confirmation is not None:

@@ -49,6 +49,8 @@ from ._topology import (
     elements_at,
     masters,
     shell_size,
+    stiffness_pids,
+    structural_pids,
     total_mass,
 )
 
@@ -276,7 +278,9 @@ def augment(model: Model, nodes: list[int], structures: list[AbstractEffect], f_
 
 def group_candidates(model: Model, aug: Model, params: tuple[Parameter, ...], screen: Screen) -> list[Candidate]:
     """Stiffness, mass and frequency law of the property groups (and halves) each kind
-    offers, but not the engineer's parameters; screened by their joint residual reduction."""
+    offers, the stiffness and mass of the whole structure and of the best-screening groups
+    together (:func:`_wider`), but not the engineer's parameters; screened by their joint
+    residual reduction."""
     taken = {(p.kind, tuple(sorted(param_eids(model, p).tolist()))) for p in params}
     out = []
     for kind in (GroupStiffness, GroupMass, FrequencyDependentStiffness):
@@ -284,16 +288,46 @@ def group_candidates(model: Model, aug: Model, params: tuple[Parameter, ...], sc
             ids = effect.elements(model)
             if (effect.kind, tuple(sorted(ids.tolist()))) in taken:
                 continue  # already a baseline parameter
-            ref = effect.at_reference(model, screen.f_e)
-            c = Candidate(ref, ref.extension(model, aug))
-            g = screen.column(ref.scales, ids)
-            cols = screen.law_columns(g) if c.ext.visco else g
-            c.screen = float(screen.rho(cols, joint=True))
-            if c.ext.visco:  # start at the linearised step (E0 factor 1 + u, law coefficient a) or on a grid
-                u, a = screen.step(cols)
-                c.scan = (tuple(np.log1p([np.clip(u, -0.5, 1.0), np.clip(a, -0.7, 1.7)])),) + ref.scan
-            out.append(c)
+            taken.add((effect.kind, tuple(sorted(ids.tolist()))))
+            out.append(_group_candidate(effect, model, aug, screen))
+    for effect in _wider(model, out):
+        ids = tuple(sorted(effect.elements(model).tolist()))
+        if (effect.kind, ids) not in taken:
+            taken.add((effect.kind, ids))
+            out.append(_group_candidate(effect, model, aug, screen))
     return out
+
+
+WIDER = (2, 3)  # the best-screening whole groups of a kind offered together, two and three of them
+
+
+def _wider(model: Model, groups: list[Candidate]) -> list[AbstractEffect]:
+    """A global error is the commonest of all: a stiffness and a mass factor of the whole
+    structure, and of the :data:`WIDER` best-screening whole groups of each kind together."""
+    out = [GroupStiffness(pids=tuple(stiffness_pids(model)), label="the whole structure"),
+           GroupMass(pids=tuple(p for p in stiffness_pids(model) if p in structural_pids(model)),
+                     label="the whole structure")]
+    for cls in (GroupStiffness, GroupMass):
+        whole = sorted((c for c in groups if type(c.reference) is cls and not c.reference.eids),
+                       key=lambda c: -c.screen)
+        for n in WIDER:
+            if len(whole) >= n:
+                pids = tuple(sorted(p for c in whole[:n] for p in c.reference.pids))
+                out.append(cls(pids=pids, label=f"pids {', '.join(map(str, pids))} together"))
+    return [e for e in out if e.pids]
+
+
+def _group_candidate(effect: AbstractEffect, model: Model, aug: Model, screen: Screen) -> Candidate:
+    """A group effect at its reference, screened by its joint residual reduction."""
+    ref = effect.at_reference(model, screen.f_e)
+    c = Candidate(ref, ref.extension(model, aug))
+    g = screen.column(ref.scales, effect.elements(model))
+    cols = screen.law_columns(g) if c.ext.visco else g
+    c.screen = float(screen.rho(cols, joint=True))
+    if c.ext.visco:  # start at the linearised step (E0 factor 1 + u, law coefficient a) or on a grid
+        u, a = screen.step(cols)
+        c.scan = (tuple(np.log1p([np.clip(u, -0.5, 1.0), np.clip(a, -0.7, 1.7)])),) + ref.scan
+    return c
 
 
 def node_candidates(aug: Model, dormant, screen: Screen) -> list[Candidate]:

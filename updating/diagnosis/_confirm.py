@@ -25,6 +25,7 @@ from .. import (
     update,
 )
 from ._abstract_effect import AbstractEffect
+from ._evidence import worse_modes
 from ._fit import Fits, scan_start
 from ._options import NOISE, DiagnoseOptions
 
@@ -63,6 +64,11 @@ class Confirmation:
     mean_mac_passive_after: float | None
     worse: tuple[ModeChange, ...]
 
+    @property
+    def passive_worse(self) -> tuple[ModeChange, ...]:
+        """The passive modes grown worse beyond noise: what withdraws a declaration."""
+        return tuple(m for m in self.worse if m.role == "passive")
+
     def to_json(self) -> dict:
         """JSON-ready (NaN and inf as null)."""
         a = self.after
@@ -90,7 +96,9 @@ def add_effect(model: Model, test: ModalData, effect: AbstractEffect, parameters
     compare with the update without it. The effect starts from its ``values`` (e.g. as
     fitted by :func:`diagnose`) or, without values, from :func:`start_values`. Its
     parameters (``effect.parameters``) are updated with the engineer's and the fitted
-    log-factors give its final values (``effect.updated``). ``worse``: the modes whose
+    log-factors give its final values (``effect.updated``); one that scales what an
+    engineer's parameter already scales (a law's E0 on such a group) stays at its value.
+    ``worse``: the modes whose
     |Δf| grew by more than 2σ of the stated frequency noise (``noise.frequency``)."""
     ne = len(test.frequencies_hz)
     passive = tuple(passive_modes) if passive_modes is not None else tuple(i for i in range(1, ne + 1) if i % 4 == 3)
@@ -107,19 +115,21 @@ def add_effect(model: Model, test: ModalData, effect: AbstractEffect, parameters
     start = effect if effect.values else start_values(model, test, effect, opts)
     extended = start.apply(model)
     eparams = start.parameters(model, extended)
-    after = update(extended, test, ParameterSet(base + eparams, opts), progress=progress)
-    final = start.updated(np.array([after.theta[after.names.index(p.name)] for p in eparams]))
+    taken = {(q.kind, q.pids, q.eids, q.nodes) for q in base}  # a law's E0 on a group the engineer already scales
+    free = tuple(q for q in eparams if (q.kind, q.pids, q.eids, q.nodes) not in taken)
+    after = update(extended, test, ParameterSet(base + free, opts), progress=progress)
+    final = start.updated(np.array([after.theta[after.names.index(q.name)] if q in free else 0.0 for q in eparams]))
     is_passive = np.isin(np.arange(1, ne + 1), passive)
     (d0, m0), (d1, m1) = before.per_test(), after.after.per_test()
     f_e = np.asarray(test.frequencies_hz)
     modes = tuple(ModeChange(j + 1, "passive" if is_passive[j] else "active", float(f_e[j]), json_number(d0[j]),
                              json_number(d1[j]), json_number(m0[j]), json_number(m1[j])) for j in range(ne))
-    grew = np.abs(d1) - np.abs(d0) > 2 * 100 * noise.frequency  # NaN (unpaired before or after): not compared
+    grew = set(worse_modes(d0 / 100, d1 / 100, noise.frequency))
     rms = lambda d, sel: rms_pct(d[sel] / 100)  # noqa: E731
     mean = lambda m: json_number(np.nanmean(m[is_passive])) if is_passive.any() else None  # noqa: E731
     return Confirmation(final, before, after, is_passive, modes, rms(d0, ~is_passive), rms(d1, ~is_passive),
                         rms(d0, is_passive), rms(d1, is_passive), mean(m0), mean(m1),
-                        tuple(m for m, g in zip(modes, grew) if g))
+                        tuple(m for m in modes if m.test in grew))
 
 
 def start_values(model: Model, test: ModalData, effect: AbstractEffect, opts: Options | None = None) -> AbstractEffect:

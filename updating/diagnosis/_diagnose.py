@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import jax.numpy as jnp
 import numpy as np
@@ -85,7 +85,7 @@ from ._candidates import (
 from ._damping import MIN_MODES, diagnose_damping
 from ._diagnosis import Diagnosis, Localisation
 from ._effects import LocalDamping
-from ._evidence import combine, evidence
+from ._evidence import combine, evidence, remainder, worse_modes
 from ._fit import (
     Fit,
     Fits,
@@ -100,9 +100,10 @@ from ._localisation import group_scores, residual_forces
 from ._options import DiagnoseOptions
 from ._ray_fits import fit_candidates_ray
 from ._reduced import Bases
-from ._refine import POINT_WALK, refine_patches, refine_places, refine_seams, threaded
+from ._refine import POINT_WALK, refine_directions, refine_patches, refine_places, refine_seams, threaded
 from ._topology import total_mass
-from ._verdict import Baseline, verdict
+from ._confirm import add_effect
+from ._verdict import Baseline, Declared, Withdrawn, state, verdict
 
 SHAPE_SIGNAL = 2.0  # shape χ² per row at the nominal model below which residual forces do not define the region
 FULL_MODEL_TOL = 1.0  # χ² by which a candidate's reduced fit may miss its cost on the full model before it is fitted there,
@@ -149,23 +150,82 @@ class _Run:
 def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = None, *,
              options: DiagnoseOptions = DiagnoseOptions(),
              progress: ProgressFn | None = None) -> Diagnosis:
-    """Compare, localise, rank candidate effects by their posterior probability and declare
-    one only when it also predicts held-out modes better (module docstring).
+    """Compare, localise, rank candidate effects by their posterior probability, declare one
+    only when it also predicts held-out modes better and its confirming update worsens no
+    passive mode; then search again on the model with it, all declared effects re-fitted
+    with the engineer's parameters, until the remainder is noise or no candidate passes
+    (module docstring, step 6).
 
     **Arguments:** the nominal model; measured modes; the engineer's updating parameters
     (the baseline; None = the nominal model as it is); options; ``progress`` (:class:`updating.Progress`) a line per
     stage. **Returns:** a :class:`Diagnosis`.
     """
     params = tuple(parameters.parameters) if parameters else ()
+    opts = parameters.options if parameters else Options()
+    start = time.perf_counter()
+    rows_ = (len(test.frequencies_hz), len(test.frequencies_hz) * len(test.sensors))
+    declared: list[Declared] = []
+    withdrawn, rounds, at, p, final = None, [], model, params, None
+    for k in range(1, options.rounds + 1):
+        rounds.append(_round(at, test, p, opts, options, progress, start, k))
+        r = rounds[-1]
+        final = r.base, r.base_held
+        if r.ranking.outcome != "effect":
+            break
+        top, c = r.ranking.results[0], r.ranking.candidates[0]
+        left = remainder(c.fit, r.run.sigma2, options.noise.frequency, rows_)
+        confirmation, reason = _confirm(r.run, at, test, top, p, opts, judged=left.noise_like)
+        if reason is not None:
+            withdrawn = Withdrawn(top, reason)
+            r.run.say(f"{top.effect.kind} at {top.effect.where()} withdrawn: {reason}")
+            break
+        declared.append(Declared(k, top, confirmation))
+        final = c.fit, c.heldout
+        if left.noise_like:
+            break
+        at, p = _with_effect(at, p, declared[-1], k)
+        r.run.say(f"round {k + 1}: searching again on the model with {len(declared)} effect(s), re-fitted together")
+    reason = _final_check(rounds[0], final[1], declared, options.noise.frequency)
+    if reason is not None:  # the set worsens a mode: the last effect goes, the state is the one before it
+        withdrawn = Withdrawn(declared.pop().result, reason)
+        final = rounds[len(declared)].base, rounds[len(declared)].base_held  # the round fitting those left
+    return _result(rounds, tuple(declared), withdrawn, model, test, start, final[0])
+
+
+def _final_check(first: _Round, heldout, declared: list[Declared], freq_sd: float) -> str | None:
+    """The declared effects as a set against the first baseline: the reason to withdraw
+    the last when a held-out mode (cross-validated with all of them) or a passive mode of
+    the confirming updates is worse by more than 2σ of the frequency noise; None when none is."""
+    if not declared:
+        return None
+    held = worse_modes(first.base_held.freq_dev, heldout.freq_dev, freq_sd) if heldout is not None else ()
+    c0, c1 = declared[0].confirmation, declared[-1].confirmation
+    passive = ()
+    if c0 is not None and c1 is not None:
+        d0, d1 = c0.before.per_test()[0], c1.after.after.per_test()[0]
+        passive = tuple(j for j in worse_modes(d0 / 100, d1 / 100, freq_sd) if c1.passive[j - 1])
+    if not held and not passive:
+        return None
+    what = [f"held-out mode {', '.join(map(str, held))}"] if held else []
+    what += [f"passive mode {', '.join(map(str, passive))} of the confirming update"] if passive else []
+    return (f"with the {len(declared)} declared effect(s) together, {' and '.join(what)} grew worse than the "
+            "baseline by more than 2σ of the frequency noise")
+
+
+def _round(model: Model, test: ModalData, params: tuple, opts: Options, options: DiagnoseOptions,
+           progress: ProgressFn | None, start: float, k: int) -> _Round:
+    """One round: localise, fit the baseline, screen, fit and rank the candidates (steps 1–4)."""
     ne, ns = len(test.frequencies_hz), len(test.sensors)
     w_lam = options.noise.relative / (np.sqrt(ns) * options.noise.eigenvalue)  # σ_φ-per-component / σ_λ
     sigma2 = (options.noise.relative / np.sqrt(ns)) ** 2
     # a weak prior (one noise unit at a factor e³ ≈ 20) keeps unidentifiable factors finite
-    solver = eigensolver_name(options.eigensolver, parameters)
+    solver = eigensolver_name(options.eigensolver, ParameterSet(params, opts) if params else None)
     pset = ParameterSet(params, Options(eigenvalue_weight=w_lam, regularisation=sigma2 / 9, eigensolver=solver,
-                                        n_model_modes=parameters.options.n_model_modes if parameters else None))
-    run = _Run(options, params, time.perf_counter(), sigma2, Fits(options.settings), solvers={},
+                                        n_model_modes=opts.n_model_modes))
+    run = _Run(options, params, start, sigma2, Fits(options.settings), solvers={},
                mass=total_mass(model), progress=progress)
+    if k > 1:
+        run.say(f"round {k}")
     f_e = np.asarray(test.frequencies_hz)
     where = _localise(run, model, test, pset, f_e)
     base, base_held, masks = _baseline(run, where.aug, ne)
@@ -176,7 +236,54 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
     run.say(f"{len(cands)} candidates screened; fitting {len(short)} ({run.elapsed()})")
     _fit_shortlist(run, short, structural, base, model, where, cands + walk_only, f_e)
     ranking = _rank(run, short, cands, base, base_held, masks, (ne, ne * ns))
-    return _result(run, model, test, where, base, base_held, ranking, cands, short, screen_k)
+    return _Round(run, model, where, base, base_held, ranking, cands, short, screen_k)
+
+
+def _confirm(run: _Run, model: Model, test: ModalData, top, params: tuple, opts: Options, judged: bool = True):
+    """The winner added and updated with the engineer's parameters, passive modes held out
+    (:func:`add_effect`): ``(confirmation, None)``, or the reason it is withdrawn — an
+    update that fails (a law or value making K + σM indefinite) or, where the winner's
+    remainder is noise (``judged``; else the final set is judged, :func:`_final_check`),
+    a passive mode worse beyond 2σ of the frequency noise."""
+    if not run.options.confirm:
+        return None, None
+    e = top.effect
+    run.say(f"confirming {e.kind} at {e.where()}: updated with it, passive modes held out ({run.elapsed()})")
+    try:
+        c = add_effect(model, test, e, ParameterSet(params, opts), noise=run.options.noise)
+    except (ValueError, RuntimeError, FloatingPointError) as err:
+        return None, f"its confirming update failed ({str(err).splitlines()[0][:200]})"
+    if c.passive_worse and judged:
+        return c, ("its confirming update made passive mode " + ", ".join(
+            f"{m.test} ({m.freq_dev_pct_before:+.2f} % → {m.freq_dev_pct_after:+.2f} %)" for m in c.passive_worse)
+            + " worse beyond 2σ of the frequency noise")
+    return c, None
+
+
+def _with_effect(model: Model, params: tuple, declared: Declared, k: int) -> tuple[Model, tuple]:
+    """The model with a declared effect — as its confirming update left it (the engineer's
+    factors and the effect's values updated), else at the ranking's values — and the
+    engineer's parameters with the effect's own (named for its round), to be re-fitted
+    together in the next round from there."""
+    extended = declared.effect.apply(model)
+    params = params + tuple(replace(q, name=f"{q.name}_{k}") for q in declared.effect.parameters(model, extended))
+    return (declared.confirmation.after.model if declared.confirmation is not None else extended), params
+
+
+@dataclass
+class _Round:
+    """One round's working results (not a result): its run, model, localisation, baseline
+    fit and cross-validation, ranking, candidates, shortlist, each element's screen."""
+
+    run: _Run
+    model: Model
+    where: object
+    base: Fit
+    base_held: object
+    ranking: object
+    cands: list
+    short: list
+    screen_k: dict
 
 
 @dataclass
@@ -315,6 +422,8 @@ def _fit_shortlist(run: _Run, short: list[Candidate], structural, base: Fit, mod
     for c0, c1 in refine_places(fitted, run.solver, run.fits, problem, where.aug, walkable, short, base, theta_b):
         say(f"  {c1.reference.kind} moved from grid {c0.reference.nodes[0]} to {c1.reference.nodes[0]} "
             f"({run.elapsed()})")
+    for c in refine_directions(fitted, where.aug, short, base):
+        say(f"  {c.reference.kind} {c.reference.where()} fitted ({run.elapsed()})")
     for c0, c1 in (refine_patches(fitted, model, where.aug, short, base, f_e)
                    + refine_seams(fitted, where.aug, short, base)):
         say(f"  {c1.reference.kind} moved from {c0.reference.where()} to {c1.reference.where()} ({run.elapsed()})")
@@ -326,7 +435,8 @@ def _rank(run: _Run, short: list[Candidate], cands: list[Candidate], base: Fit, 
     the ranking again with their held-out errors (step 4)."""
     n_b, say = len(run.params), run.say
     mass = run.mass
-    ranked = evidence(short, base, base_held, n_b, n_rows, run.sigma2, mass).candidates
+    f_sd = run.options.noise.frequency
+    ranked = evidence(short, base, base_held, n_b, n_rows, run.sigma2, mass, f_sd).candidates
     top = [c for c in ranked if np.isfinite(c.fit.cost)][:run.options.cross_validate]
     for c in cands + short:  # the others' reduced bases freed (n × r each, 50 MB at 33,000 DoFs; 24 GB filled)
         if c not in top:
@@ -338,7 +448,7 @@ def _rank(run: _Run, short: list[Candidate], cands: list[Candidate], base: Fit, 
     say(f"cross-validating the {len(top)} most probable ({len(masks) - 1} folds, {run.elapsed()})")
     for c in top:
         c.heldout = cross_validate(run.fits, run.problem, c.ext, c.fit, masks, run.solver(c))
-    return evidence(short, base, base_held, n_b, n_rows, run.sigma2, mass)
+    return evidence(short, base, base_held, n_b, n_rows, run.sigma2, mass, f_sd)
 
 
 def _on_full_model(run: _Run, c: Candidate) -> Fit:
@@ -356,45 +466,68 @@ def _on_full_model(run: _Run, c: Candidate) -> Fit:
     return fit(run.fits, run.problem, c.ext, c.fit.theta)
 
 
-def _result(run: _Run, model: Model, test: ModalData, where: _Where, base: Fit, base_held, ranking, cands,
-            short, elem_a) -> Diagnosis:
-    """The comparison at the baseline, the localisation, the ranking and the verdict; the
-    damping part (step 5)."""
-    problem, options, n_b = run.problem, run.options, len(run.params)
+def _result(rounds: list[_Round], declared: tuple[Declared, ...], withdrawn: Withdrawn | None, model: Model,
+            test: ModalData, start: float, final_fit: Fit) -> Diagnosis:
+    """The comparison at the first baseline, the last round's localisation and ranking, the
+    declared effects, the state and its verdict; the damping part (step 5)."""
+    first, last = rounds[0], rounds[-1]
+    run, options, n_b = first.run, first.run.options, len(first.run.params)
+    problem = first.run.problem
     ne, ns = len(test.frequencies_hz), len(test.sensors)
     f_e = np.asarray(test.frequencies_hz)
+    base = first.base
     theta_b = base.theta[:n_b]
-    best = ranking.results[0].effect if ranking.outcome == "effect" else None
     ev = evaluate(jnp.asarray(base.theta), problem)
     pairing = pair_modes(np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model), f_e,
                          np.asarray(problem.phi_e), min_mac=problem.min_mac, max_freq_dev=problem.max_freq_dev)
     co = np.asarray(comac(np.asarray(ev.phi_model)[:, pairing.model], np.asarray(problem.phi_e)[:, pairing.test]))
-    group_b, group_a = group_scores(where.elem_b, model), group_screens(cands)
-    node_a = node_max(where.aug, elem_a)
+    where = last.where
+    group_b, group_a = group_scores(where.elem_b, last.model), group_screens(last.cands)
+    node_a = node_max(where.aug, last.screen_k)
     node_score = combine(node_a, where.node_b)
     chi2 = lambda cost: float(cost / run.sigma2 / (ne + ne * ns))  # noqa: E731
     baseline = Baseline(
         tuple((p.name, float(np.expm1(t))) for p, t in zip(run.params, theta_b)), rms_pct(base.freq_dev),
-        float(np.nanmean(base.mac)), rms_pct(base_held.freq_dev), float(np.nanmean(base_held.mac)),
+        float(np.nanmean(base.mac)), rms_pct(first.base_held.freq_dev), float(np.nanmean(first.base_held.mac)),
         chi2(base.cost), chi2(base.cost_freq) * (ne + ne * ns) / ne, chi2(base.cost_shape) * (ne + ne * ns) / (ne * ns))
     localisation = Localisation(
         tuple((p, s, group_a.get(p, 0.0), group_b.get(p, 0.0)) for p, s in combine(group_a, group_b).items()),
         tuple((n, s, node_a.get(n, 0.0), where.node_b.get(n, 0.0)) for n, s in list(node_score.items())[:30]),
         tuple(where.nodes))
-    text = verdict(ranking.outcome, ranking.results, ranking.ties, baseline)
-    damping = None
-    if LocalDamping.kind in options.kinds and np.sum(np.asarray(test.damping_ratios) > 0) >= MIN_MODES:
-        at = where.nominal_problem.model(jnp.asarray(theta_b))  # the baseline, with the structural effect if one was found
-        damping = diagnose_damping(at if best is None else best.apply(at), test, noise=options.noise,
-                                   folds=options.folds, min_mac=problem.min_mac,
-                                   max_freq_dev=problem.max_freq_dev, progress=run.progress)
+    ranking = last.ranking
+    rows_ = (ne, ne * ns)
+    left = lambda f: remainder(f, run.sigma2, options.noise.frequency, rows_)  # noqa: E731
+    final = left(final_fit)
+    outcome = state(ranking.outcome, ranking.results, declared, left(base), final)
+    ties = ranking.ties if outcome == "cannot_localise" or declared and declared[-1].round == len(rounds) else ()
+    text = verdict(outcome, ranking.results, ties, baseline, declared, final, left(base), withdrawn)
+    confirmation = declared[-1].confirmation if declared else None
+    damping = _damping(run, test, first, declared, confirmation)
+    if damping is not None:
         text += " Damping: " + damping.verdict
-    seconds = time.perf_counter() - run.start
+    seconds = time.perf_counter() - start
     run.say(f"diagnosis done in {seconds:.1f} s")
     return Diagnosis(
-        ranking.outcome, text, ranking.results, ranking.ties, best, baseline, pairing,
+        outcome, text, ranking.results, ties, declared[0].effect if declared else None, baseline, pairing,
         tuple((lab, float(v)) for lab, v in zip(test.sensors.labels, co)), localisation, options.noise,
-        ranking.noise_scale, ranking.baseline_posterior, len(cands), len(short), seconds,
-        ranking.candidates, model, run.params,
-        combine({e: v for e, v in elem_a.items() if e in set(model.element_ids().tolist())}, where.elem_b), node_score,
-        (np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model)), damping)
+        ranking.noise_scale, ranking.baseline_posterior, sum(len(r.cands) for r in rounds),
+        sum(len(r.short) for r in rounds), seconds, ranking.candidates, model, run.params,
+        combine({e: v for e, v in first.screen_k.items() if e in set(model.element_ids().tolist())}, first.where.elem_b),
+        node_score, (np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model)), damping,
+        declared, withdrawn, final, len(rounds), confirmation)
+
+
+def _damping(run: _Run, test: ModalData, first: _Round, declared, confirmation):
+    """The damping part, on the model with the declared effects (updated, where confirmed)."""
+    options = run.options
+    if LocalDamping.kind not in options.kinds or np.sum(np.asarray(test.damping_ratios) > 0) < MIN_MODES:
+        return None
+    at = first.where.nominal_problem.model(jnp.asarray(first.base.theta[:len(run.params)]))
+    if confirmation is not None:
+        at = confirmation.after.model
+    elif declared:
+        for d in declared:
+            at = d.effect.apply(at)
+    problem = run.problem
+    return diagnose_damping(at, test, noise=options.noise, folds=options.folds, min_mac=problem.min_mac,
+                            max_freq_dev=problem.max_freq_dev, progress=run.progress)

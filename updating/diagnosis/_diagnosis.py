@@ -12,7 +12,9 @@ from ._abstract_effect import AbstractEffect
 from ._candidates import Candidate
 from ._damping import DampingDiagnosis
 from ._evidence import CandidateResult
-from ._verdict import Baseline
+from ._confirm import Confirmation
+from ._evidence import Remainder
+from ._verdict import Baseline, Declared, Withdrawn
 
 
 @dataclass(frozen=True)
@@ -33,13 +35,18 @@ class Localisation:
 
 @dataclass(frozen=True)
 class Diagnosis:
-    """Result of :func:`diagnose`. ``outcome``: "effect", "none_needed" or "unexplained";
-    ``verdict``: that in one sentence (and the damping part's); ``effects``: the ranked candidates, best first;
-    ``best``: the declared effect at its fitted values (None unless ``outcome`` is
-    "effect"); ``ties``: places the sensors cannot tell from it; ``baseline``; the
+    """Result of :func:`diagnose`. ``outcome``: the state (:mod:`._verdict`: "effect",
+    "partial", "none_needed", "unconfirmed", "cannot_localise" or "unexplained");
+    ``verdict``: that in one sentence (and the damping part's); ``effects``: the last
+    round's ranked candidates, best first; ``best``: the first declared effect (None when
+    none is); ``ties``: places the sensors cannot tell from the last declared one (or, when
+    it cannot localise, from the winner); ``baseline``; the
     ``pairing`` at the baseline and each sensor's COMAC; ``localisation``; the stated
     ``noise``; ``damping`` (the damping
-    part, where the test has damping ratios).
+    part, where the test has damping ratios); ``declared``: the declared effects in order
+    (:class:`Declared`), ``withdrawn`` a winner its confirming update withdrew,
+    ``remainder`` what the final model leaves, ``rounds`` searched, ``confirmation`` the
+    last declared effect's confirming update (the model with every declared effect).
     """
 
     outcome: str
@@ -64,6 +71,11 @@ class Diagnosis:
     node_scores: dict[int, float]
     sensor_modes: tuple  # baseline model frequencies (Hz) and shapes at the sensors
     damping: DampingDiagnosis | None = None
+    declared: tuple[Declared, ...] = ()
+    withdrawn: Withdrawn | None = None
+    remainder: Remainder | None = None
+    rounds: int = 1
+    confirmation: Confirmation | None = None
 
     @property
     def no_effect_warranted(self) -> bool:
@@ -78,6 +90,10 @@ class Diagnosis:
             "baseline": self.baseline.to_json(),
             "sensors": [{"label": lab, "comac": v} for lab, v in self.comac],
             "localisation": self.localisation.to_json(),
+            "declared": [d.to_json() for d in self.declared],
+            "withdrawn": self.withdrawn.to_json() if self.withdrawn is not None else None,
+            "remainder": self.remainder.to_json() if self.remainder is not None else None,
+            "rounds": self.rounds,
             "effects": [e.to_json() for e in self.effects],
             "outcome": self.outcome, "noise_scale": self.noise_scale, "baseline_posterior": self.baseline_posterior,
             "ties": [{k: e.to_json()[k] for k in ("kind", "where", "nodes", "pids", "posterior", "log_evidence")}

@@ -80,7 +80,7 @@ def Effect(kind: str, pids=(), eids=(), nodes=(), values: dict | None = None, la
     wrong = sorted(set(where) - names) + sorted(set(values or {}) - set(cls.value_names))
     if wrong:
         raise ValueError(f"effect {kind}: {wrong} not among its locations and values "
-                         f"{sorted(names & {'pids', 'eids', 'nodes', 'radius', 'part'})}, {list(cls.value_names)}")
+                         f"{sorted(names & {'pids', 'eids', 'nodes', 'radius', 'part', 'height', 'components'})}, {list(cls.value_names)}")
     return cls(**where, **(values or {}), label=label)
 
 
@@ -88,7 +88,7 @@ def parse_effect(spec: str) -> AbstractEffect:
     """``KIND:TARGET`` as on the command line, e.g. ``joint:node=6001``,
     ``joint:node=3007;pids=21,22``, ``stiffness:pid=41``, ``mass:eids=201-205``,
     ``added_mass:node=2015``, ``payload:nodes=2015,2016,2026,2025;height=0.05`` (its CG, m),
-    ``boundary_spring:node=1``,
+    ``boundary_spring:node=1``, ``boundary_spring:node=1001;components=3`` (z only),
     ``frequency_dependent_stiffness:pid=41``, ``delamination:node=1234;radius=0.03``,
     ``patch_stiffness:node=1234;radius=0.05;part=bending`` (radius in m),
     ``seam:node=1001-1005;pids=101,201``, ``damping:eids=6-8`` (a loss factor, fitted by
@@ -105,6 +105,12 @@ def parse_effect(spec: str) -> AbstractEffect:
         if key == "part" and value:
             location["part"] = value.strip()
             continue
+        if key == "components" and value:
+            try:
+                location["components"] = tuple(int(c) for c in value.split(","))
+            except ValueError:
+                raise ValueError(f"effect {spec!r}: components {value!r} are not integers 1–3") from None
+            continue
         if key in ("radius", "height") and value:
             try:
                 location[key] = float(value)
@@ -113,7 +119,7 @@ def parse_effect(spec: str) -> AbstractEffect:
             continue
         if key not in where or not value:
             raise ValueError(f"effect {spec!r}: unknown target {part!r} "
-                             "(pid(s)=, eid(s)=, node(s)=, radius=, part=, height=)")
+                             "(pid(s)=, eid(s)=, node(s)=, radius=, part=, height=, components=)")
         ids: list[int] = []
         try:
             for item in value.split(","):

@@ -189,11 +189,13 @@ class Joint(AbstractAddedElements):
 
 
 class BoundarySpring(AbstractAddedElements):
-    """Springs to ground at a grid: ``k`` (N/m) on the translations of an unconstrained
-    grid, or ``k_trans`` (N/m) / ``k_rot`` (N·m/rad) on the released components of an SPC."""
+    """Springs to ground at a grid: ``k`` (N/m) on the translations ``components`` (1–3,
+    in the grid's displacement axes; default all three) of an unconstrained grid, or
+    ``k_trans`` (N/m) / ``k_rot`` (N·m/rad) on the released components of an SPC."""
 
     nodes: tuple[int, ...] = ids_field()
     label: str = label_field()
+    components: tuple[int, ...] = eqx.field(static=True, default=(1, 2, 3), converter=lambda c: tuple(int(i) for i in c))
     k: float | None = value_field()
     k_trans: float | None = value_field()
     k_rot: float | None = value_field()
@@ -213,6 +215,8 @@ class BoundarySpring(AbstractAddedElements):
 
     def __check_init__(self):
         self._check_nodes()
+        if not self.components or not set(self.components) <= {1, 2, 3}:
+            raise ValueError(f"effect {self.kind}: components {self.components} must be translations among 1, 2, 3")
 
     @classmethod
     def candidates(cls, model: Model) -> list[BoundarySpring]:
@@ -228,7 +232,7 @@ class BoundarySpring(AbstractAddedElements):
                 model = jaxfem.add_ground_springs(model, node, [
                     self._need("k_trans") if c <= 3 else self._need("k_rot") for c in fixed], fixed)[0]
             else:
-                model = jaxfem.add_ground_springs(model, node, self._need("k"), (1, 2, 3))[0]
+                model = jaxfem.add_ground_springs(model, node, self._need("k"), self.components)[0]
         return model
 
     def at_reference(self, model: Model, f_test_hz) -> BoundarySpring:
@@ -243,9 +247,15 @@ class BoundarySpring(AbstractAddedElements):
     def plausibility(self, total_mass: float, reference: AbstractEffect | None = None) -> list[str]:
         return _rigid_note(self, reference)
 
+    def to_json(self) -> dict:
+        return {**super().to_json(), "components": list(self.components)}
+
     def advice(self, sd) -> str:
         s = np.broadcast_to(np.asarray(sd, float), (2,)) if self.split else np.full(2, np.atleast_1d(sd)[0])
         grids = ", ".join(map(str, self.nodes))
+        if not self.split and self.components != (1, 2, 3):
+            return (f"add a spring to ground of {spread(self.k, s[0], 'N/m')} on translation "
+                    f"{', '.join('xyz'[c - 1] for c in self.components)} of grid {grids} only")
         if not self.split:
             return f"add springs to ground of {spread(self.k, s[0], 'N/m')} on the translations of grid {grids}"
         return (f"make the support at grid {grids} flexible: k_trans = {spread(self.k_trans, s[0], 'N/m')}, "

@@ -18,6 +18,8 @@ from ._abstract_effect import AbstractEffect, ids_field, label_field, value_fiel
 from ._scans import SCAN_LAW
 from ._topology import property_groups, stiffness_pids, structural_pids
 
+LAW_SHARE = 0.5  # the largest share of the stiffness elements a frequency law's group may hold
+
 # ---------------------------------------------------------------------------------------
 # factors on a property group
 
@@ -150,8 +152,12 @@ class FrequencyDependentStiffness(AbstractGroupEffect):
 
     @classmethod
     def candidates(cls, model: Model) -> list[FrequencyDependentStiffness]:
-        """Every stiffness property group, whole."""
-        return [cls(pids=(p,), label=lab) for p, _, lab in property_groups(model, stiffness_pids(model), split=False)]
+        """Every stiffness property group, whole, of at most :data:`LAW_SHARE` of the
+        structure's stiffness elements: a material law of (nearly) the whole structure is
+        model form, not a missing local physics."""
+        n = len(model.element_ids(pids=stiffness_pids(model)))
+        return [cls(pids=(p,), label=lab) for p, _, lab in property_groups(model, stiffness_pids(model), split=False)
+                if len(model.element_ids(pids=(p,))) <= LAW_SHARE * n]
 
     def apply(self, model: Model) -> Model:
         model, group = super().apply(model), self.elements(model).tolist()

@@ -34,6 +34,9 @@ class DiagnoseOptions:
     ``ray``: the shortlisted candidates fitted on Ray workers (``"local"``, ``"auto"`` or
     a cluster address, :func:`updating.diagnosis._ray_fits.fit_candidates_ray`; ``ray_workers`` of them,
     default one per CPU); the hill-climb and the cross-validation stay on the driver.
+    ``rounds``: the most effects declared one after another (:func:`updating.diagnose`,
+    step 6); ``confirm``: each winner is added and updated with passive modes held out
+    before it is declared (withdrawn where a passive mode grows worse beyond noise).
     ``threads``: without Ray, the shortlisted candidates, and the neighbours of each step of
     the hill-climbs, are fitted on this many threads of this process, sharing its compiled
     fit (None: one per CPU, at most ``OMP_NUM_THREADS``; 1: one after another).
@@ -56,6 +59,8 @@ class DiagnoseOptions:
     ray: str | None = None
     ray_workers: int | None = None
     threads: int | None = None
+    rounds: int = 3
+    confirm: bool = True
 
     @property
     def settings(self) -> Settings:

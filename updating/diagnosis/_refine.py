@@ -1,11 +1,14 @@
 """The place of a fitted candidate refined by hill-climbing (:func:`updating.diagnose`, step 3):
 an added mass or spring walks from grid to grid, a patch moves its centre and radius, a
-seam walks along its line and in length — each while a neighbour fits better."""
+seam walks along its line and in length — each while a neighbour fits better; springs to
+ground at a free grid are tried on each translation alone."""
 
 from __future__ import annotations
 
 import os
 from concurrent.futures import ThreadPoolExecutor
+
+from dataclasses import replace
 
 import numpy as np
 
@@ -20,7 +23,7 @@ from ._candidates import (
     seam_onward,
     with_masks,
 )
-from ._effects import AbstractPatch, Seam
+from ._effects import AbstractPatch, BoundarySpring, Seam
 from ._fit import Fit, Fits, scan_start
 from ._topology import total_mass
 
@@ -89,6 +92,32 @@ def refine_places(fitted, solver, fits: Fits, problem, aug: Model, cands: list[C
         if best is not None and best.fit.cost < base.cost:
             moves += _climb(best, fitted_neighbours)
     return moves
+
+
+def refine_directions(fitted, aug: Model, short: list[Candidate], base: Fit) -> list[Candidate]:
+    """The best-fitting springs to ground at a free grid also fitted on each translation
+    alone (one of its three dormant springs woken, from the three's fitted log-factor): the
+    evidence chooses between them — a vertical support at a nose is not springs in all
+    three translations. Fits join ``short``; returns them."""
+    free = [c for c in short if c.reference.kind == BoundarySpring.kind and c.family == "mask" and not c.ext.split
+            and c.reference.components == (1, 2, 3) and np.isfinite(c.fit.cost)]
+    best = min(free, key=lambda c: c.fit.cost, default=None)
+    if best is None or best.fit.cost >= base.cost:
+        return []
+    node = best.reference.nodes[0]
+    row = int(aug.node_index([node])[0])
+    s = aug.springs
+    dormant = (s.nodes[:, 0] == row) & (s.nodes[:, 1] < 0) & (np.asarray(s.k_scale) == 0)
+    new = []
+    for comp in (1, 2, 3):
+        hit = s.ids[dormant & (s.components[:, 0] == comp)]
+        if len(hit) == 1:
+            ref = replace(best.reference, components=(comp,), label=f"node {node}, {'xyz'[comp - 1]} only")
+            new.append(Candidate(ref, ref.dormant_extension(aug, [int(hit[0])]),
+                                 theta0=best.fit.theta[len(best.fit.theta) - 1:]))
+    fitted(new)
+    short.extend(new)
+    return new
 
 
 def refine_patches(fitted, model: Model, aug: Model, short: list[Candidate], base: Fit,

@@ -32,7 +32,7 @@ _HEADERS = {"mac": "MAC [–]", "comac": "COMAC [–]", "freq_dev_pct": "Δf [%]
             "heldout_rms_zeta_dev_pct": "held-out RMS ζ deviation [%]", "posterior": "posterior probability [–]",
             "log_evidence": "ln Bayes factor vs baseline [–]", "log_occam": "ln Occam factor [–]",
             "f_test_hz": "f test [Hz]", "f_model_hz": "f model [Hz]", "zeta_test": "ζ test [–]",
-            "zeta_baseline": "ζ Rayleigh alone [–]", "zeta_best": "ζ with the best region [–]",
+            "zeta_baseline": "ζ uniform damping [–]", "zeta_best": "ζ with the best region [–]",
             "rms_freq_dev_pct_active_before": "RMS Δf active before [%]",
             "rms_freq_dev_pct_active_after": "RMS Δf active after [%]",
             "rms_freq_dev_pct_passive_before": "RMS Δf passive (held out) before [%]",
@@ -194,11 +194,24 @@ def _failures(d: dict) -> list[str]:
 def _candidates(d: dict) -> list[str]:
     """The table of candidate effects, its legend and the outcome."""
     effects = [{**e, "notes": "; ".join(map(str, e.get("plausibility") or []))} for e in d.get("effects") or []]
-    outcome = {"effect": "<p>The most probable effect passes every test (more probable than the baseline, χ² "
-                         "and held-out error in frequencies and shapes lowered beyond noise).</p>",
+    outcome = {"effect": "<p>The declared effects pass every test (decisive over the baseline, χ², held-out "
+                         "frequencies and shapes lowered beyond noise, no held-out or passive mode worse); what "
+                         "remains is noise.</p>",
+               "partial": "<p><b>Partially explained</b>: modes remain off beyond noise and no further candidate "
+                          "passes.</p>",
                "none_needed": "<p><b>No extra effect is warranted</b>: the baseline explains the data to the "
                               "stated noise.</p>",
-               "unexplained": "<p><b>No single effect explains the data.</b></p>"}.get(d.get("outcome"), "")
+               "unconfirmed": "<p><b>A candidate fits to noise but is not confirmed</b> by the held-out modes.</p>",
+               "cannot_localise": "<p><b>The sensors cannot localise the effect</b>: equally good places.</p>",
+               "unexplained": "<p><b>No effect in the library explains the data.</b></p>"}.get(d.get("outcome"), "")
+    declared = [{**e, "values": e.get("parameters")} for e in d.get("declared") or []]
+    if declared:
+        outcome += "<h3>Declared effects, in order</h3>" + _table(declared, [
+            "round", "kind", "where", "values", "heldout_rms_freq_dev_pct_before", "heldout_rms_freq_dev_pct_after",
+            "rms_freq_dev_pct_passive_before", "rms_freq_dev_pct_passive_after"])
+    if d.get("withdrawn"):
+        w = d["withdrawn"]
+        outcome += f"<p>Withdrawn: {html.escape(str(w.get('kind')))} at {html.escape(str(w.get('where')))}: {html.escape(str(w.get('reason')))}</p>"
     return [
         _table(effects, ["rank", "kind", "where", "parameters", "posterior", "log_evidence", "log_occam",
                          "chi2_per_row", "heldout_rms_freq_dev_pct_before", "heldout_rms_freq_dev_pct_after",
@@ -222,7 +235,7 @@ def _damping(d: dict) -> list[str]:
                                                          "heldout_rms_zeta_dev_pct_before",
                                                          "heldout_rms_zeta_dev_pct_after", "warranted"])
         if damping.get("effects") else "",
-        "<p>ζ: viscous damping ratio; zeta_baseline: Rayleigh damping alone (eq. 3.40) fitted; zeta_best: with "
+        "<p>ζ: viscous damping ratio; zeta_baseline: uniform damping (Rayleigh, eq. 3.40, and a constant loss factor η0) fitted; zeta_best: with "
         "the first-ranked region's loss factor η (modal strain energy); held-out: each mode predicted by a fit "
         "on the other folds, % of the measured ratio.</p>" if damping else ""]
 
