@@ -15,6 +15,7 @@ from jaxfem import Model
 from .. import (
     Noise,
     Options,
+    Parameter,
     ParameterSet,
     ProgressFn,
     UpdateResult,
@@ -115,8 +116,7 @@ def add_effect(model: Model, test: ModalData, effect: AbstractEffect, parameters
     start = effect if effect.values else start_values(model, test, effect, opts)
     extended = start.apply(model)
     eparams = start.parameters(model, extended)
-    taken = {(q.kind, q.pids, q.eids, q.nodes) for q in base}  # a law's E0 on a group the engineer already scales
-    free = tuple(q for q in eparams if (q.kind, q.pids, q.eids, q.nodes) not in taken)
+    free = free_parameters(eparams, base)
     after = update(extended, test, ParameterSet(base + free, opts), progress=progress)
     final = start.updated(np.array([after.theta[after.names.index(q.name)] if q in free else 0.0 for q in eparams]))
     is_passive = np.isin(np.arange(1, ne + 1), passive)
@@ -130,6 +130,13 @@ def add_effect(model: Model, test: ModalData, effect: AbstractEffect, parameters
     return Confirmation(final, before, after, is_passive, modes, rms(d0, ~is_passive), rms(d1, ~is_passive),
                         rms(d0, is_passive), rms(d1, is_passive), mean(m0), mean(m1),
                         tuple(m for m in modes if m.test in grew))
+
+
+def free_parameters(effect_params: tuple[Parameter, ...], base: tuple[Parameter, ...]) -> tuple[Parameter, ...]:
+    """An effect's parameters less those scaling what one of ``base`` already scales (a
+    law's E0 on a group the engineer scales): identical Jacobian columns, kept fixed."""
+    taken = {(q.kind, q.pids, q.eids, q.nodes) for q in base}
+    return tuple(q for q in effect_params if (q.kind, q.pids, q.eids, q.nodes) not in taken)
 
 
 def start_values(model: Model, test: ModalData, effect: AbstractEffect, opts: Options | None = None) -> AbstractEffect:

@@ -102,7 +102,7 @@ from ._ray_fits import fit_candidates_ray
 from ._reduced import Bases
 from ._refine import POINT_WALK, refine_directions, refine_patches, refine_places, refine_seams, threaded
 from ._topology import total_mass
-from ._confirm import add_effect
+from ._confirm import add_effect, free_parameters
 from ._verdict import Baseline, Declared, Withdrawn, state, verdict
 
 SHAPE_SIGNAL = 2.0  # shape χ² per row at the nominal model below which residual forces do not define the region
@@ -266,7 +266,8 @@ def _with_effect(model: Model, params: tuple, declared: Declared, k: int) -> tup
     engineer's parameters with the effect's own (named for its round), to be re-fitted
     together in the next round from there."""
     extended = declared.effect.apply(model)
-    params = params + tuple(replace(q, name=f"{q.name}_{k}") for q in declared.effect.parameters(model, extended))
+    own = free_parameters(declared.effect.parameters(model, extended), params)
+    params = params + tuple(replace(q, name=f"{q.name}_{k}") for q in own)
     return (declared.confirmation.after.model if declared.confirmation is not None else extended), params
 
 
