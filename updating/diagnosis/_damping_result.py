@@ -10,7 +10,7 @@ from ._effects import LocalDamping
 
 @dataclass(frozen=True)
 class DampingMode:
-    """One paired mode (numbers from 1): the measured ratio ζ, Rayleigh's fit
+    """One paired mode (numbers from 1): the measured ratio ζ, uniform damping's fit
     ``zeta_baseline`` and the first-ranked region's ``zeta_best`` (NaN without one)."""
 
     test_mode: int
