@@ -25,12 +25,19 @@
    candidate's marginal likelihood under its kind's prior, posterior probabilities over
    the candidates and the baseline; the most probable ones are cross-validated over the
    test modes (the thesis' active/passive idea made systematic, §4.2.4.2). An effect is
-   declared only when it is decisively more probable than the baseline, lowers χ² beyond
-   noise and lowers the held-out error in frequencies and in shapes; places of one kind
-   the data cannot tell apart are reported as ties.
+   declared only when, at the stated noise, it is decisively more probable than the
+   baseline, lowers χ² and the held-out error in frequencies and shapes beyond noise and
+   makes no held-out mode worse (:func:`~._evidence.evidence`); places of one kind the
+   data cannot tell apart are reported as ties.
 5. **Damping**, where the test has damping ratios of at least four modes: which region's
-   loss factor they ask for beyond Rayleigh damping (:func:`updating.diagnose_damping`,
-   the ``damping`` effect), on the modes of the baseline with the declared effect.
+   loss factor they ask for beyond uniform damping (:func:`updating.diagnose_damping`,
+   the ``damping`` effect), on the model with the declared effects.
+6. **Confirmation and rounds**: the winner is added and updated with passive modes held
+   out (:func:`_confirm`, withdrawn where a passive mode grows worse or the update
+   fails); while what it leaves is not noise, the search runs again on that model, every
+   declared effect re-fitted with the engineer's parameters; the set is checked against
+   the first baseline (:func:`_final_check`) and the verdict's state derived from the
+   numbers (:mod:`._verdict`).
 
 Residual rows are weighted by the expected measurement noise (relative frequency σ_f,
 relative shape σ_φ per component), so the cost is a χ² and frequencies and shapes weigh
