@@ -453,10 +453,20 @@ def seam_onward(aug: Model, a: Candidate, b: Candidate) -> Candidate | None:
     return structural_candidate(aug, b.released.seam(b.reference.run(line, start, n)), theta[len(theta) - len(b.theta0):])
 
 
+LAW_REMAINDER = 2.0  # a law is fitted where its linearised remainder is within this factor of the best other's
+
+
 def shortlist(cands: list[Candidate], best: int, per_kind: int, kinds, within: float) -> list[Candidate]:
     """The ``best`` screened candidates overall, and of each kind those screening at least
-    ``within`` of the kind's best, at most ``per_kind``."""
+    ``within`` of the kind's best, at most ``per_kind``; frequency laws only where their
+    linearised remainder 1 − ρ is within :data:`LAW_REMAINDER` times the best other
+    candidate's (a law has its group's factor and one more parameter: screening well below
+    a simpler candidate it cannot win by evidence, and its fits solve a frequency-dependent
+    eigenproblem, a compiled fit of their own: 22–29 s of a GARTEUR diagnosis)."""
     screened = sorted(cands, key=lambda c: -np.nan_to_num(c.screen, nan=-np.inf))
+    law = FrequencyDependentStiffness.kind
+    other = max((c.screen for c in screened if c.reference.kind != law and np.isfinite(c.screen)), default=0.0)
+    screened = [c for c in screened if c.reference.kind != law or 1 - c.screen <= LAW_REMAINDER * (1 - other)]
     short = screened[:best]
     for kind in kinds:
         of_kind = [c for c in screened if c.reference.kind == kind]
