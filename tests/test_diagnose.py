@@ -77,6 +77,26 @@ def test_boundary_spring(frame):
     assert_fixed(d.to_json())
 
 
+def test_the_confirming_update_is_the_one_add_effect_makes(frame):
+    """The diagnosis confirms its winner on its own compiled fit (stated-noise weights):
+    the same effect, parameters and passive modes as :func:`add_effect` (the engineer's
+    weights) and, at 0.2 % noise, the same mass and passive error within noise."""
+    model, sensors = frame
+    stiffer = jaxfem.correct(model, [model.element_ids(pids=[3]).tolist()], jnp.array([0.05]))
+    test = measure(Effect("added_mass", nodes=(14,), values={"m": 25.0}).apply(stiffer), sensors)
+    params = ParameterSet((Parameter("k3", "stiffness", pids=(3,)),), Options())
+    d = diagnose(model, test, params, options=_opts())
+    own = d.confirmation
+    other = add_effect(model, test, d.effects[0].effect, params)
+    assert (own.effect.kind, own.effect.nodes) == (other.effect.kind, other.effect.nodes) == ("added_mass", (14,))
+    assert own.after.names == other.after.names and list(own.passive) == list(other.passive)
+    assert abs(own.effect.values["m"] - 25.0) < 1.0 and abs(own.effect.values["m"] - other.effect.values["m"]) < 0.5
+    assert abs(own.after.alpha[0] - 0.05) < 0.01  # the engineer's factor found again (k = 1.05 k₀)
+    assert own.after.history[0].alpha[1] == 0.0  # the effect's α are relative to its fitted values
+    assert own.rms_passive_after < 2.5 * 100 * NOISE_F and abs(own.rms_passive_after - other.rms_passive_after) < 0.1
+    assert own.after.model.n_dof == other.after.model.n_dof  # no candidate held dormant in the updated model
+
+
 def test_stiffness_of_half_a_group(frame):
     """Groups of 8 beams here (in the 8-group frame a half is 2 beams at one grid, which
     the data cannot tell from a flexible joint there): the lower-x half of pid 1, the

@@ -42,13 +42,18 @@ class Settings(eqx.Module):
     """The loop's settings (static): solver, the α-change ``tolerance`` (§4.2.5.1),
     ``max_iterations`` accepted steps, ``max_steps`` steps in all. With ``relative`` the
     tolerance is on the relative change of each factor, |Δθ| = |Δ ln(1 + α)|: for
-    factors far from 1 (a softened joint, a woken added mass) a small Δα is no convergence."""
+    factors far from 1 (a softened joint, a woken added mass) a small Δα is no convergence.
+    ``cost_tolerance`` (> 0): also converged when the undamped Gauss–Newton step from the
+    accepted iterate predicts a cost decrease ½(‖ε‖² − ‖ε + J δ‖²) below it — a flat
+    valley (a released joint's stiffness, which any value past the release fits alike)
+    where θ moves by more than ``tolerance`` at every step and the cost by nothing."""
 
     gauss_newton: bool = eqx.field(static=True)
     tolerance: float = eqx.field(static=True)
     max_iterations: int = eqx.field(static=True)
     max_steps: int = eqx.field(static=True)
     relative: bool = eqx.field(static=True, default=False)
+    cost_tolerance: float = eqx.field(static=True, default=0.0)
 
     @classmethod
     def from_options(cls, options: Options, *, max_steps: int | None = None) -> Settings:
@@ -152,6 +157,23 @@ def _row(theta, cost, ev: Evaluation, problem: Problem):
 Progress = Callable[[int, np.ndarray, float, np.ndarray, np.ndarray], None]
 
 
+def _converged(opt, new, moved, change, settings: Settings):
+    """The step taken and the undamped Gauss–Newton step from its end both within the
+    tolerance (a Levenberg–Marquardt step is damped, λ = 1 at first, and where JᵀJ ≪ 1 — a
+    softened seam's stiffness — it is short however far the minimum lies), or the
+    Gauss–Newton step predicting less than ``cost_tolerance`` (:class:`Settings`).
+    Minimum-norm lstsq, not the step's QR: a padded inert column is zero where μ = 0
+    (updating.diagnosis._fit.Fits)."""
+    r, J = opt.f_info.residual, opt.f_info.jac.as_matrix()
+    gn = jnp.linalg.lstsq(J, -r)[0]
+    remaining = jnp.max(jnp.abs(gn) if settings.relative else jnp.abs(jnp.expm1(new + gn) - jnp.expm1(new)))
+    converged = (moved & (change <= settings.tolerance) & (remaining <= settings.tolerance)) | (opt.terminate & ~moved)
+    if settings.cost_tolerance > 0:
+        flat = 0.5 * (jnp.sum(r ** 2) - jnp.sum((r + J @ gn) ** 2)) <= settings.cost_tolerance
+        converged = converged | (moved & flat)
+    return converged
+
+
 def run(theta0: Float[Array, " p"], problem: Problem, eigensolver: AbstractEigensolver, warm: Array,
         settings: Settings, skip: Bool[Array, ""] | bool = False, progress: Progress | None = None,
         evaluate_skipped: bool = False) -> State:
@@ -198,14 +220,7 @@ def run(theta0: Float[Array, " p"], problem: Problem, eigensolver: AbstractEigen
                                History(*row))
         if progress is not None:
             jax.lax.cond(write, lambda: emit(slot, row), lambda: None)
-        # converged: the step taken and the undamped Gauss–Newton step from its end both within the
-        # tolerance; a Levenberg–Marquardt step is damped (λ = 1 at first) and where JᵀJ ≪ 1 (a
-        # softened seam's stiffness) it is short however far the minimum lies. Minimum-norm lstsq, not
-        # the step's QR: a padded inert column is zero where μ = 0 (updating.diagnosis._fit.Fits)
-        gn = jnp.linalg.lstsq(opt.f_info.jac.as_matrix(), -opt.f_info.residual)[0]
-        remaining = jnp.max(jnp.abs(gn) if settings.relative else jnp.abs(jnp.expm1(new + gn) - jnp.expm1(new)))
-        converged = (moved & (change <= settings.tolerance) & (remaining <= settings.tolerance)) \
-            | (opt.terminate & ~moved)
+        converged = _converged(opt, new, moved, change, settings)
         steps = s.steps + 1
         done = converged | (accepted >= settings.max_iterations) | (steps >= settings.max_steps) \
             | ~jnp.all(jnp.isfinite(new)) | skip

@@ -3,6 +3,8 @@ modes out: the error falling, on modes not used in the fit (thesis §4.2.4.2).""
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import jax.numpy as jnp
@@ -13,21 +15,25 @@ from identification import ModalData, Pairing, pair_modes, rms_pct
 from jaxfem import Model
 
 from .. import (
+    Extension,
+    Iteration,
     Noise,
     Options,
     Parameter,
     ParameterSet,
+    Problem,
     ProgressFn,
     UpdateResult,
     build_problem,
     evaluate,
     json_number,
     json_safe,
+    parameterise,
     update,
 )
 from ._abstract_effect import AbstractEffect
 from ._evidence import worse_modes
-from ._fit import Fits, scan_start
+from ._fit import Fits, scan_start, with_extension
 from ._options import NOISE, DiagnoseOptions
 
 
@@ -102,23 +108,71 @@ def add_effect(model: Model, test: ModalData, effect: AbstractEffect, parameters
     ``worse``: the modes whose
     |Δf| grew by more than 2σ of the stated frequency noise (``noise.frequency``)."""
     ne = len(test.frequencies_hz)
-    passive = tuple(passive_modes) if passive_modes is not None else tuple(i for i in range(1, ne + 1) if i % 4 == 3)
+    passive = tuple(passive_modes) if passive_modes is not None else default_passive(ne)
     base = tuple(parameters.parameters) if parameters else ()
     opts = replace(parameters.options if parameters else Options(), active_modes=None, passive_modes=passive)
     if base:
         before = update(model, test, ParameterSet(base, opts)).after
     else:
         problem = build_problem(model, test, ParameterSet((), opts))
-        ev = evaluate(jnp.zeros(0), problem)
-        before = pair_modes(np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model),
-                            np.asarray(test.frequencies_hz), np.asarray(problem.phi_e),
-                            min_mac=problem.min_mac, max_freq_dev=problem.max_freq_dev)
+        before = _paired(evaluate(jnp.zeros(0), problem), test, problem)
     start = effect if effect.values else start_values(model, test, effect, opts)
     extended = start.apply(model)
     eparams = start.parameters(model, extended)
     free = free_parameters(eparams, base)
     after = update(extended, test, ParameterSet(base + free, opts), progress=progress)
     final = start.updated(np.array([after.theta[after.names.index(q.name)] if q in free else 0.0 for q in eparams]))
+    return _confirmation(final, before, after, test, passive, noise)
+
+
+def confirm_on_fit(fits: Fits, problem: Problem, none: Extension, ext: Extension, reference: AbstractEffect,
+                   theta_e, params: tuple[Parameter, ...], at_params: Callable[[np.ndarray], Model],
+                   test: ModalData, noise: Noise = NOISE) -> Confirmation:
+    """:func:`add_effect` on a diagnosis' compiled fit (``fits`` on ``problem``, the model
+    holding every candidate): the baseline (extension ``none``) and the effect (``ext``,
+    θ = 0 its ``reference``, from its fitted ``theta_e``), each with the engineer's
+    ``params`` from nominal, fitted on the same active modes at the diagnosis' stated-noise
+    weights; no compilation of its own (two updates compiled apart took 25–30 s of a
+    GARTEUR diagnosis). The effect's α are relative to its fitted values;
+    ``at_params(θ)``: the model at the engineer's log-factors θ."""
+    t0 = time.perf_counter()
+    ne, n_b = len(test.frequencies_hz), len(params)
+    passive = default_passive(ne)
+    mask = ~np.isin(np.arange(1, ne + 1), passive)
+    theta_e = np.asarray(theta_e, float)
+    b = fits.loop(np.zeros(n_b + 1), with_extension(problem, none, mask), skip=n_b == 0)
+    a = fits.loop(np.concatenate([np.zeros(n_b), theta_e]), with_extension(problem, ext, mask))
+    final = reference.updated(a.theta[n_b:])
+    start = reference.updated(theta_e)
+    eparams = start.parameters(at_params(np.zeros(n_b)), start.apply(at_params(np.zeros(n_b))))
+    model = final.apply(at_params(a.theta[:n_b]))
+    alpha = np.concatenate([a.alpha[:, :n_b], np.expm1(np.log1p(a.alpha[:, n_b:]) - theta_e)], axis=1)
+    history = [Iteration(k, alpha[k], a.freq_dev[k], a.mac[k], float(a.cost[k])) for k in range(len(alpha))]
+    modes = {key: (np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model))
+             for key, ev in (("before", a.start), ("after", a.end))}
+    after = UpdateResult(model, [q.name for q in params + eparams], alpha[-1], np.log1p(alpha[-1]), a.converged,
+                         len(history) - 1, history, mask, _paired(a.start, test, problem), _paired(a.end, test, problem),
+                         time.perf_counter() - t0, modes, parameterise(model, params + eparams)[1])
+    return _confirmation(final, _paired(b.end, test, problem), after, test, passive, noise)
+
+
+def default_passive(ne: int) -> tuple[int, ...]:
+    """Every fourth of ``ne`` test modes from the third (numbered from 1): held out of an update."""
+    return tuple(i for i in range(1, ne + 1) if i % 4 == 3)
+
+
+def _paired(ev, test: ModalData, problem: Problem) -> Pairing:
+    """The pairing of all computed model modes at one evaluation, as in reports."""
+    return pair_modes(np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model),
+                      np.asarray(test.frequencies_hz), np.asarray(problem.phi_e),
+                      min_mac=problem.min_mac, max_freq_dev=problem.max_freq_dev)
+
+
+def _confirmation(final: AbstractEffect, before: Pairing, after: UpdateResult, test: ModalData,
+                  passive: tuple[int, ...], noise: Noise) -> Confirmation:
+    """Per-mode changes, RMS Δf over active and passive modes, passive MAC, the modes
+    grown worse beyond 2σ of the frequency noise."""
+    ne = len(test.frequencies_hz)
     is_passive = np.isin(np.arange(1, ne + 1), passive)
     (d0, m0), (d1, m1) = before.per_test(), after.after.per_test()
     f_e = np.asarray(test.frequencies_hz)

@@ -109,10 +109,11 @@ from ._ray_fits import fit_candidates_ray
 from ._reduced import Bases
 from ._refine import POINT_WALK, refine_directions, refine_patches, refine_places, refine_seams, threaded
 from ._topology import total_mass
-from ._confirm import add_effect, free_parameters
+from ._confirm import confirm_on_fit, free_parameters
 from ._verdict import Baseline, Declared, Withdrawn, state, verdict
 
 SHAPE_SIGNAL = 2.0  # shape χ² per row at the nominal model below which residual forces do not define the region
+FLAT_CHI2 = 0.01  # a fit has converged where its Gauss–Newton step would lower χ² by less (a flat valley)
 FULL_MODEL_TOL = 1.0  # χ² by which a candidate's reduced fit may miss its cost on the full model before it is fitted there,
 FULL_MODEL_REL = 0.01  # or this share of its χ², if more (the 33k seam's reduced fit missed by 16 of 12,000: 0.13 %)
 
@@ -181,7 +182,7 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
             break
         top, c = r.ranking.results[0], r.ranking.candidates[0]
         left = remainder(c.fit, r.run.sigma2, options.noise.frequency, rows_)
-        confirmation, reason = _confirm(r.run, at, test, top, p, opts, judged=left.noise_like)
+        confirmation, reason = _confirm(r, c, test, top, judged=left.noise_like)
         if reason is not None:
             withdrawn = Withdrawn(top, reason)
             r.run.say(f"{top.effect.kind} at {top.effect.where()} withdrawn: {reason}")
@@ -229,7 +230,8 @@ def _round(model: Model, test: ModalData, params: tuple, opts: Options, options:
     solver = eigensolver_name(options.eigensolver, ParameterSet(params, opts) if params else None)
     pset = ParameterSet(params, Options(eigenvalue_weight=w_lam, regularisation=sigma2 / 9, eigensolver=solver,
                                         n_model_modes=opts.n_model_modes))
-    run = _Run(options, params, start, sigma2, Fits(options.settings), solvers={},
+    settings = replace(options.settings, cost_tolerance=float(FLAT_CHI2 / 2 * sigma2))  # engine cost ½Σr², χ² = Σr²/σ²
+    run = _Run(options, params, start, sigma2, Fits(settings), solvers={},
                mass=total_mass(model), progress=progress)
     if k > 1:
         run.say(f"round {k}")
@@ -246,25 +248,27 @@ def _round(model: Model, test: ModalData, params: tuple, opts: Options, options:
     return _Round(run, model, where, base, base_held, ranking, cands, short, screen_k)
 
 
-def _confirm(run: _Run, model: Model, test: ModalData, top, params: tuple, opts: Options, judged: bool = True):
-    """The winner added and updated with the engineer's parameters, passive modes held out
-    (:func:`add_effect`): ``(confirmation, None)``, or the reason it is withdrawn — an
-    update that fails (a law or value making K + σM indefinite) or, where the winner's
-    remainder is noise (``judged``; else the final set is judged, :func:`_final_check`),
-    a passive mode worse beyond 2σ of the frequency noise."""
+def _confirm(r: _Round, c: Candidate, test: ModalData, top, judged: bool = True):
+    """The winner added and updated with the engineer's parameters, passive modes held out,
+    on the round's compiled fit (:func:`confirm_on_fit`): ``(confirmation, None)``, or
+    the reason it is withdrawn — an update that fails (a law or value making K + σM
+    indefinite) or, where the winner's remainder is noise (``judged``; else the final set
+    is judged, :func:`_final_check`), a passive mode worse beyond 2σ of the frequency noise."""
+    run = r.run
     if not run.options.confirm:
         return None, None
-    e = top.effect
+    e, n_b = top.effect, len(run.params)
     run.say(f"confirming {e.kind} at {e.where()}: updated with it, passive modes held out ({run.elapsed()})")
     try:
-        c = add_effect(model, test, e, ParameterSet(params, opts), noise=run.options.noise)
+        conf = confirm_on_fit(run.fits, run.problem, run.none, c.ext, c.reference, c.fit.theta[n_b:], run.params,
+                              lambda t: r.where.nominal_problem.model(jnp.asarray(t)), test, run.options.noise)
     except (ValueError, RuntimeError, FloatingPointError) as err:
         return None, f"its confirming update failed ({str(err).splitlines()[0][:200]})"
-    if c.passive_worse and judged:
-        return c, ("its confirming update made passive mode " + ", ".join(
-            f"{m.test} ({m.freq_dev_pct_before:+.2f} % → {m.freq_dev_pct_after:+.2f} %)" for m in c.passive_worse)
+    if conf.passive_worse and judged:
+        return conf, ("its confirming update made passive mode " + ", ".join(
+            f"{m.test} ({m.freq_dev_pct_before:+.2f} % → {m.freq_dev_pct_after:+.2f} %)" for m in conf.passive_worse)
             + " worse beyond 2σ of the frequency noise")
-    return c, None
+    return conf, None
 
 
 def _with_effect(model: Model, params: tuple, declared: Declared, k: int) -> tuple[Model, tuple]:
@@ -420,7 +424,7 @@ def _fit_shortlist(run: _Run, short: list[Candidate], structural, base: Fit, mod
             for i, c in enumerate(order)]
     if options.ray:
         say(f"  on Ray ({options.ray}): {len(jobs)} candidates")
-        done = fit_candidates_ray(problem, options.settings, jobs, address=options.ray, workers=options.ray_workers)
+        done = fit_candidates_ray(problem, run.fits.settings, jobs, address=options.ray, workers=options.ray_workers)
     else:
         done = threaded(lambda job: (job, candidate_fit(run.fits, problem, *job[1:])), jobs, options.threads)
     for k, (job, (theta0, result)) in enumerate(done, 1):

@@ -47,6 +47,22 @@ class Fit:
 
 
 @dataclass(frozen=True)
+class Loop:
+    """One fit's loop: θ, each accepted iterate's factors α = e^θ − 1, cost ½‖ε‖², Δf
+    (fraction) and MAC per test mode (row 0 the start), whether it converged, and the
+    evaluations (:class:`updating.Evaluation`) at the start and at θ."""
+
+    theta: np.ndarray
+    alpha: np.ndarray
+    cost: np.ndarray
+    freq_dev: np.ndarray
+    mac: np.ndarray
+    converged: bool
+    start: object
+    end: object
+
+
+@dataclass(frozen=True)
 class HeldOut:
     """k-fold cross-validation of a fit: summed held-out costs (frequency, shape) and each
     test mode's Δf (fraction) and MAC when it was held out (NaN where unpaired)."""
@@ -73,7 +89,8 @@ def _solve_one(theta0, problem: Problem, settings: Settings, skip, solver: Abstr
     state = run(theta0, problem, solver, jnp.zeros(0), settings, skip, evaluate_skipped=True)
     ev, jac = state.evaluation, state.jacobian
     fit, held = (_cost_parts(state.theta, problem, mask, ev) for mask in (problem.active, ~problem.active))
-    return state.theta, fit, held, ev.lam_a, ev.paired, ev.mac, jac[:-state.theta.shape[0]]
+    loop = (state.history, state.accepted, state.converged, state.start, ev)
+    return state.theta, fit, held, ev.lam_a, ev.paired, ev.mac, jac[:-state.theta.shape[0]], loop
 
 
 class Fits:
@@ -90,11 +107,21 @@ class Fits:
         14–24 s at 33,000 DoFs). An inert entry changes no model; its Jacobian column is
         its regularisation row alone, so its step is zero and θ, costs and Jacobian are
         those of the unpadded fit (they are returned so)."""
+        return self._run(theta0, problem, solver, skip)[:-1]
+
+    def loop(self, theta0, problem: Problem, solver: AbstractEigensolver = Direct(), skip: bool = False) -> Loop:
+        """A fit (:meth:`solve`) with its loop kept, for an update's report."""
+        theta, *_, (history, accepted, converged, start, end) = self._run(theta0, problem, solver, skip)
+        n, rows_ = theta.shape[0], int(accepted) + 1
+        return Loop(np.asarray(theta), np.asarray(history.alpha)[:rows_, :n], np.asarray(history.cost)[:rows_],
+                    np.asarray(history.freq_dev)[:rows_], np.asarray(history.mac)[:rows_], bool(converged), start, end)
+
+    def _run(self, theta0, problem: Problem, solver: AbstractEigensolver, skip: bool):
         theta0 = jnp.asarray(theta0)
         n = theta0.shape[0]
         width = max(n, len(problem.parameterisation.parameters) + EXTENSION_PARAMS)
         out = self._solve(jnp.pad(theta0, (0, width - n)), problem, self.settings, jnp.asarray(skip), solver)
-        return (out[0][:n], *out[1:-1], out[-1][:, :n])
+        return (out[0][:n], *out[1:-2], out[-2][:, :n], out[-1])
 
     def cost(self, theta, problem: Problem, solver: AbstractEigensolver = Direct()) -> float:
         return float(sum(self.solve(theta, problem, solver, skip=True)[1]))
