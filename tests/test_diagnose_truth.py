@@ -32,10 +32,11 @@ def test_hidden_effect_from_an_independent_truth(case):
 
 
 KNOWN_WRONG = {  # case name → why the diagnosis does not yet get it right (strict: passing fails the test)
-    "garteur-joint-and-mass": "round 1 declares the tailplane mass at grid 7001 (right); the wing–body joint RBE2 1013 "
-                              "is offered in round 2 but screens below the shortlist, and rounds 2 and 3 declare a "
-                              "frequency law of the fuselage (pid 1) and 2.2 kg at fuselage grid 1028 in its place: "
-                              "partial, 727 s (issue 46)",
+    "garteur-joint-and-mass": "round 1 declares the tailplane mass at grid 7001 (right place, 0.17 of 0.25 kg); the "
+                              "wing–body joint RBE2 1013 is offered in round 2 but screens below the shortlist (fitted "
+                              "there anyway, a frequency law of the fuselage, pid 1, still fits better), and rounds 2 "
+                              "and 3 declare that law and 2.2 kg at fuselage grid 1028 in its place: partial, 680–800 s "
+                              "(issue 46)",
 }
 
 
