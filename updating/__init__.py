@@ -71,7 +71,9 @@ from ._simulation import perturb as perturb
 from ._simulation import simulate_test as simulate_test
 from ._solve import active_mask as active_mask
 from ._solve import build_problem as build_problem
+from ._solve import evaluation_pairing as evaluation_pairing
 from ._solve import n_model_modes as n_model_modes
+from ._solve import sensor_modes as sensor_modes
 from ._solve import update as update
 
 # the subpackages, after the core they import from here

@@ -101,10 +101,15 @@ def n_model_modes(model: Model, n_test: int, requested: int | None = None) -> in
     return int(min(n_free, requested or n_test + max(6, n_test)))
 
 
-def _pairing(ev, test: ModalData, problem: Problem):
-    """Exact (Hungarian) pairing of all computed model modes, for reports."""
-    return pair_modes(np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model),
-                      np.asarray(test.frequencies_hz), np.asarray(problem.phi_e),
+def sensor_modes(ev) -> tuple[np.ndarray, np.ndarray]:
+    """All computed model modes of one evaluation: frequencies (Hz) and shapes at the sensors."""
+    return np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model)
+
+
+def evaluation_pairing(ev, test: ModalData, problem: Problem):
+    """Exact (Hungarian) pairing of all computed model modes of one evaluation
+    (:class:`Evaluation`) with the test modes, at the problem's thresholds, for reports."""
+    return pair_modes(*sensor_modes(ev), np.asarray(test.frequencies_hz), np.asarray(problem.phi_e),
                       min_mac=problem.min_mac, max_freq_dev=problem.max_freq_dev)
 
 
@@ -159,11 +164,10 @@ def update(model: Model, test: ModalData, parameters: ParameterSet, *,
         iterations=n,
         history=history,
         active=np.asarray(problem.active),
-        before=_pairing(state.start, test, problem),
-        after=_pairing(state.evaluation, test, problem),
+        before=evaluation_pairing(state.start, test, problem),
+        after=evaluation_pairing(state.evaluation, test, problem),
         seconds=time.perf_counter() - start,
-        sensor_modes={key: (np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model))
-                      for key, ev in (("before", state.start), ("after", state.evaluation))},
+        sensor_modes={"before": sensor_modes(state.start), "after": sensor_modes(state.evaluation)},
         parameterisation=problem.parameterisation,
         warnings=tuple(notes),
     )

@@ -10,8 +10,7 @@ from dataclasses import dataclass, replace
 import jax.numpy as jnp
 import numpy as np
 
-import jaxfem
-from identification import ModalData, Pairing, pair_modes, rms_pct
+from identification import ModalData, Pairing, rms_pct
 from jaxfem import Model
 
 from .. import (
@@ -26,9 +25,11 @@ from .. import (
     UpdateResult,
     build_problem,
     evaluate,
+    evaluation_pairing,
     json_number,
     json_safe,
     parameterise,
+    sensor_modes,
     update,
 )
 from ._abstract_effect import AbstractEffect
@@ -115,7 +116,7 @@ def add_effect(model: Model, test: ModalData, effect: AbstractEffect, parameters
         before = update(model, test, ParameterSet(base, opts)).after
     else:
         problem = build_problem(model, test, ParameterSet((), opts))
-        before = _paired(evaluate(jnp.zeros(0), problem), test, problem)
+        before = evaluation_pairing(evaluate(jnp.zeros(0), problem), test, problem)
     start = effect if effect.values else start_values(model, test, effect, opts)
     extended = start.apply(model)
     eparams = start.parameters(model, extended)
@@ -142,30 +143,21 @@ def confirm_on_fit(fits: Fits, problem: Problem, none: Extension, ext: Extension
     theta_e = np.asarray(theta_e, float)
     b = fits.loop(np.zeros(n_b + 1), with_extension(problem, none, mask), skip=n_b == 0)
     a = fits.loop(np.concatenate([np.zeros(n_b), theta_e]), with_extension(problem, ext, mask))
-    final = reference.updated(a.theta[n_b:])
-    start = reference.updated(theta_e)
-    eparams = start.parameters(at_params(np.zeros(n_b)), start.apply(at_params(np.zeros(n_b))))
+    final, start, nominal = reference.updated(a.theta[n_b:]), reference.updated(theta_e), at_params(np.zeros(n_b))
+    eparams = start.parameters(nominal, start.apply(nominal))
     model = final.apply(at_params(a.theta[:n_b]))
     alpha = np.concatenate([a.alpha[:, :n_b], np.expm1(np.log1p(a.alpha[:, n_b:]) - theta_e)], axis=1)
     history = [Iteration(k, alpha[k], a.freq_dev[k], a.mac[k], float(a.cost[k])) for k in range(len(alpha))]
-    modes = {key: (np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model))
-             for key, ev in (("before", a.start), ("after", a.end))}
+    modes = {"before": sensor_modes(a.start), "after": sensor_modes(a.end)}
     after = UpdateResult(model, [q.name for q in params + eparams], alpha[-1], np.log1p(alpha[-1]), a.converged,
-                         len(history) - 1, history, mask, _paired(a.start, test, problem), _paired(a.end, test, problem),
+                         len(history) - 1, history, mask, evaluation_pairing(a.start, test, problem), evaluation_pairing(a.end, test, problem),
                          time.perf_counter() - t0, modes, parameterise(model, params + eparams)[1])
-    return _confirmation(final, _paired(b.end, test, problem), after, test, passive, noise)
+    return _confirmation(final, evaluation_pairing(b.end, test, problem), after, test, passive, noise)
 
 
 def default_passive(ne: int) -> tuple[int, ...]:
     """Every fourth of ``ne`` test modes from the third (numbered from 1): held out of an update."""
     return tuple(i for i in range(1, ne + 1) if i % 4 == 3)
-
-
-def _paired(ev, test: ModalData, problem: Problem) -> Pairing:
-    """The pairing of all computed model modes at one evaluation, as in reports."""
-    return pair_modes(np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model),
-                      np.asarray(test.frequencies_hz), np.asarray(problem.phi_e),
-                      min_mac=problem.min_mac, max_freq_dev=problem.max_freq_dev)
 
 
 def _confirmation(final: AbstractEffect, before: Pairing, after: UpdateResult, test: ModalData,

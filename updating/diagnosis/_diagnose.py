@@ -53,8 +53,7 @@ from dataclasses import dataclass, replace
 import jax.numpy as jnp
 import numpy as np
 
-import jaxfem
-from identification import ModalData, comac, pair_modes, rms_pct
+from identification import ModalData, comac, rms_pct
 from jaxfem import Model
 
 from .. import (
@@ -66,8 +65,10 @@ from .. import (
     build_problem,
     eigensolver_name,
     evaluate,
+    evaluation_pairing,
     extension,
     progress_lines,
+    sensor_modes,
 )
 from ._candidates import (
     PATCHES,
@@ -486,12 +487,10 @@ def _result(rounds: list[_Round], declared: tuple[Declared, ...], withdrawn: Wit
     run, options, n_b = first.run, first.run.options, len(first.run.params)
     problem = first.run.problem
     ne, ns = len(test.frequencies_hz), len(test.sensors)
-    f_e = np.asarray(test.frequencies_hz)
     base = first.base
     theta_b = base.theta[:n_b]
     ev = evaluate(jnp.asarray(base.theta), problem)
-    pairing = pair_modes(np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model), f_e,
-                         np.asarray(problem.phi_e), min_mac=problem.min_mac, max_freq_dev=problem.max_freq_dev)
+    pairing = evaluation_pairing(ev, test, problem)
     co = np.asarray(comac(np.asarray(ev.phi_model)[:, pairing.model], np.asarray(problem.phi_e)[:, pairing.test]))
     where = last.where
     group_b, group_a = group_scores(where.elem_b, last.model), group_screens(last.cands)
@@ -525,7 +524,7 @@ def _result(rounds: list[_Round], declared: tuple[Declared, ...], withdrawn: Wit
         ranking.noise_scale, ranking.baseline_posterior, sum(len(r.cands) for r in rounds),
         sum(len(r.short) for r in rounds), seconds, ranking.candidates, model, run.params,
         combine({e: v for e, v in first.screen_k.items() if e in set(model.element_ids().tolist())}, first.where.elem_b),
-        node_score, (np.asarray(jaxfem.frequencies_hz(ev.lam_model)), np.asarray(ev.phi_model)), damping,
+        node_score, sensor_modes(ev), damping,
         declared, withdrawn, final, len(rounds), confirmation)
 
 
