@@ -4,6 +4,7 @@ at the stiff baseline; the reduced derivative equals finite differences; a fit o
 reduced model lands where the full one does. The diagnosis through reduced fits:
 tests/test_diagnose.py::test_joint."""
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 from types import SimpleNamespace
@@ -17,12 +18,12 @@ from benchmarks.frames import frame_bdf
 from identification import Sensors
 from jaxfem.io import read_bdf_text
 from test_diagnose import measure
-from updating import Options, Parameter, ParameterSet
+from updating import Direct, Options, Parameter, ParameterSet
 from updating.diagnosis._candidates import augment, region_structures, structural_candidates
 from updating.diagnosis import DiagnoseOptions
 from updating.diagnosis._diagnose import FULL_MODEL_TOL, _on_full_model
 from updating.diagnosis._effects import Effect, at_reference
-from updating.diagnosis._fit import Fits, fit, with_extension
+from updating.diagnosis._fit import Fits, fit, scan_costs, with_extension
 from updating._extension import extension
 from updating.diagnosis._reduced import Bases
 from updating._residuals import evaluate
@@ -278,3 +279,28 @@ def test_a_mass_raised_off_its_grid_is_assembled_not_linear(case):
         whole = Reduced(red.basis, red.padding, red.observed)
         for t in map(jnp.asarray, theta):
             np.testing.assert_allclose(red(t, p, jnp.zeros(0))[0].lam_a, whole(t, p, jnp.zeros(0))[0].lam_a, rtol=1e-9)
+
+
+class _IndefiniteAbove(Direct):
+    """The problem's own solve, failing as an indefinite K + σM does (a runtime error of the
+    compiled solve) where the candidate's log-factor exceeds ``limit``: the scan point a
+    reduced basis' linear form can make indefinite (the GARTEUR joint RBE2 5003 at 616 DoFs)."""
+
+    limit: float = 2.0
+
+    def __call__(self, theta, problem, warm):
+        ev, *rest = super().__call__(theta, problem, warm)
+        lam = eqx.error_if(ev.lam_a, theta[-1] > self.limit, "K + σM is not positive definite")
+        return (eqx.tree_at(lambda e: e.lam_a, ev, lam), *rest)
+
+
+def test_a_scan_point_that_cannot_be_solved_costs_inf_not_a_traceback(joint):
+    """Item 7 of issue 46: the point is no start (cost inf), the others are scanned as before,
+    and a fit started there is reported with its reason, not raised."""
+    problem, fits, c, _, _ = joint
+    grid = [(0.0, 0.0), (0.0, 3.0), (0.0, -1.5)]
+    costs = scan_costs(fits, problem, c.ext, np.zeros(0), grid, _IndefiniteAbove())
+    assert np.isinf(costs[1]) and np.all(np.isfinite(costs[[0, 2]]))
+    assert np.allclose(costs[[0, 2]], scan_costs(fits, problem, c.ext, np.zeros(0), grid[::2]), rtol=1e-12)
+    failed = fit(fits, problem, c.ext, np.array([0.0, 3.0]), _IndefiniteAbove())
+    assert np.isinf(failed.cost) and "positive definite" in failed.error

@@ -99,6 +99,7 @@ from ._fit import (
     Fits,
     candidate_fit,
     cross_validate,
+    failure_reason,
     fit,
     fold_masks,
     scan_costs,
@@ -264,7 +265,7 @@ def _confirm(r: _Round, c: Candidate, test: ModalData, top, judged: bool = True)
         conf = confirm_on_fit(run.fits, run.problem, run.none, c.ext, c.reference, c.fit.theta[n_b:], run.params,
                               lambda t: r.where.nominal_problem.model(jnp.asarray(t)), test, run.options.noise)
     except (ValueError, RuntimeError, FloatingPointError) as err:
-        return None, f"its confirming update failed ({str(err).splitlines()[0][:200]})"
+        return None, f"its confirming update failed ({failure_reason(err)[:200]})"
     if conf.passive_worse and judged:
         return conf, ("its confirming update made passive mode " + ", ".join(
             f"{m.test} ({m.freq_dev_pct_before:+.2f} % → {m.freq_dev_pct_after:+.2f} %)" for m in conf.passive_worse)

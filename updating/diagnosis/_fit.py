@@ -124,7 +124,14 @@ class Fits:
         return (out[0][:n], *out[1:-2], out[-2][:, :n], out[-1])
 
     def cost(self, theta, problem: Problem, solver: AbstractEigensolver = Direct()) -> float:
-        return float(sum(self.solve(theta, problem, solver, skip=True)[1]))
+        """The cost at θ; inf where the model there is not solvable (a point of a scan that
+        makes K + σM indefinite is no candidate's start: :func:`fit` reports it likewise)."""
+        try:
+            return float(sum(self.solve(theta, problem, solver, skip=True)[1]))
+        except (RuntimeError, ValueError) as err:
+            if not unsolvable(err):
+                raise
+            return float("inf")
 
 
 def with_extension(problem: Problem, ext: Extension, mask=None) -> Problem:
@@ -166,6 +173,23 @@ def candidate_fit(fits: Fits, problem: Problem, ext: Extension, theta_b: np.ndar
     return theta0, fit(fits, problem, ext, np.concatenate([theta_b, theta0]), solver)
 
 
+def unsolvable(err: Exception) -> bool:
+    """Whether ``err`` is a check of the compiled solve failing at runtime (K + σM
+    indefinite, a non-finite model): a RuntimeError, or, from a host callback, a ValueError
+    (a fit on a thread at 33k) — not a programming error."""
+    return isinstance(err, RuntimeError) or "CpuCallback error" in str(err)
+
+
+def failure_reason(err: Exception) -> str:
+    """The check's own message from a failed compiled solve (a host callback wraps it in
+    a traceback whose first line says only "CpuCallback error")."""
+    lines = str(err).splitlines()
+    for line in lines:
+        if "RuntimeError: " in line:
+            return line.split("RuntimeError: ", 1)[1].strip()
+    return lines[0] if lines else type(err).__name__
+
+
 def fold_masks(n: int, folds: int) -> list[np.ndarray]:
     """All modes, then one mask per fold (mode i held out in fold i mod k)."""
     ids = np.arange(n)
@@ -180,10 +204,10 @@ def fit(fits: Fits, problem: Problem, ext: Extension, theta0, solver: AbstractEi
         out = jax.tree.map(np.asarray, fits.solve(theta0, with_extension(problem, ext, np.ones(len(lam_e), bool)),
                                                   solver, skip))
     except (RuntimeError, ValueError) as err:  # a trial step made the model non-finite: report, do not rank
-        if isinstance(err, ValueError) and "CpuCallback error" not in str(err):
-            raise  # a check in a host callback arrives as either (a fit on a thread at 33k: ValueError)
+        if not unsolvable(err):
+            raise
         return Fit(np.asarray(theta0), float("inf"), float("nan"), float("nan"), np.full(len(lam_e), np.nan),
-                   np.full(len(lam_e), np.nan), None, str(err).splitlines()[0])
+                   np.full(len(lam_e), np.nan), None, failure_reason(err))
     theta, (cf, cs), _, lam_a, paired, macs, jac = out
     return Fit(theta, float(cf + cs), float(cf), float(cs), _deviation(lam_a, paired, lam_e),
                np.where(paired, macs, np.nan), jac)
