@@ -268,3 +268,23 @@ def test_plausibility(model):
     ref = Joint(nodes=(node,), pids=pids).at_reference(model, [20.0])
     assert ref.updated(np.log([10.0, 10.0])).plausibility(mass, ref) == []
     assert "rigid" in ref.updated(np.log([1.0, 2e3])).plausibility(mass, ref)[0]
+
+
+def test_a_joint_that_would_release_nothing_is_refused(model):
+    """A joint given at a grid that is neither RBE2-dependent nor shared by the groups named
+    added springs to a new grid nothing was attached to: the model's modes unchanged, no
+    word. It is refused, naming the grid and what to give instead."""
+    from importlib import resources
+
+    node, pids = _shared_grid(model)
+    values = {"k_trans": 1e8, "k_rot": 1e4}
+    assert not np.allclose(_freqs(Effect("joint", pids=pids, nodes=(node,), values=values).apply(model)),
+                           _freqs(model), rtol=1e-3)
+    for wrong in ((), (pids[0],), (pids[0], 999)):
+        with pytest.raises(ValueError, match=rf"joint at grid {node} releases nothing.*give two pids meeting there"):
+            Effect("joint", pids=wrong, nodes=(node,), values=values).apply(model)
+    garteur = jaxfem.build_model(read_bdf_text((resources.files("updating") / "data" / "garteur.bdf").read_text()))
+    with pytest.raises(ValueError, match=r"grid 1013 is the master of an RBE2: give its dependent grids \(2000, 2001, 3001\)"):
+        Effect("joint", nodes=(1013,), values=values).apply(garteur)
+    released = Effect("joint", nodes=(2000, 2001, 3001), values=values).apply(garteur)
+    assert released.n_dof == garteur.n_dof + 18  # the three dependent grids, now independent

@@ -122,6 +122,21 @@ def _release(model: Model, nodes, pids, k_trans: float, k_rot: float, shares=Non
     return model
 
 
+def _check_shared(model: Model, node: int, pids, dep: dict) -> None:
+    """A grid released as shared by groups must have an element of ``pids[1:]`` at it:
+    else the springs would hold a new grid nothing is attached to, a silent no-op
+    (``joint:node=1013`` at the RBE2 master 1013 instead of its dependent grids)."""
+    if set(elements_at(model, node).values()) & set(pids[1:]):
+        return
+    dependents = sorted(g for g, m in dep.items() if m == node)
+    hint = (f"grid {node} is the master of an RBE2: give its dependent grids "
+            f"({', '.join(map(str, dependents))}) as the joint's nodes" if dependents
+            else f"give two pids meeting there (e.g. joint:node={node};pids=first,second: the second is released), of "
+                 f"{', '.join(map(str, sorted(set(elements_at(model, node).values())))) or 'none'}")
+    raise ValueError(f"a joint at grid {node} releases nothing: it is not an RBE2-dependent grid and no element "
+                     f"of pids {list(pids[1:]) or '(none given)'} is attached to it; {hint}")
+
+
 class Joint(AbstractAddedElements):
     """A rigid connection made flexible: 6-DoF springs (two CBUSHes, translations and
     rotations) located at the released grid. At an RBE2-dependent grid the grid is
@@ -166,15 +181,22 @@ class Joint(AbstractAddedElements):
                                label=f"grid {int(node)} between pids {' and '.join(map(str, sorted(at)))}"))
         return out
 
+    def _released_grids_checked(self, model: Model) -> dict:
+        """The model's RBE2 dependents → masters, each grid of the joint checked to release
+        something (:func:`_check_shared`)."""
+        dep = masters(model)
+        for node in self.nodes:
+            if node not in dep:
+                _check_shared(model, node, self.pids, dep)
+        return dep
+
     def add_to(self, model: Model) -> Model:
+        self._released_grids_checked(model)
         return _release(model, self.nodes, self.pids, self._need("k_trans"), self._need("k_rot"))
 
     def at_reference(self, model: Model, f_test_hz) -> Joint:
         """Slightly flexible (:func:`~updating.diagnosis._topology.joint_reference` of the released side)."""
-        dep = masters(model)
-        if not all(n in dep for n in self.nodes) and len(self.pids) < 2:
-            raise ValueError(f"joint at grid(s) {list(self.nodes)}: not RBE2-dependent; name the two "
-                             "groups, e.g. joint:node=3007;pids=21,22 (the second group is released)")
+        dep = self._released_grids_checked(model)
         side = [e for n in self.nodes for e, p in elements_at(model, n).items() if n in dep or p in self.pids[1:]]
         return replace(self, **joint_reference(model, self.nodes, side))
 
