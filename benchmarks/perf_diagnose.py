@@ -140,6 +140,21 @@ reuse; each diagnosis compiles its fit anew.
   take many steps);
 - the confirming update 6 s (30 s before).
 
+**Levers tried for the 60 s aim** (garteur-noisy-mass alone, fresh process, 2026-12-01, on a
+machine where it took 107 s with the code above, compile included; XLA compilation 35 s
+of it over 165 programs, tracing 9 s, lowering 4 s — the rest runs):
+- *A partial dense eigensolve* (issue 48) is no lever at this size: one evaluation with its
+  Jacobian takes 80 ms (75 ms without), of which the all-modes LAPACK ``eigh`` of 592 DoFs
+  50–59 ms; a subset solve of the 34 wanted modes takes 25 ms, but the exact eigenvector
+  derivative then needs the rest of the modal expansion by iteration on the complement
+  (about 20 block products n² × 28 modes × 4 tangents), which costs more than it saves.
+- *Reduced fits* (``reduce_above=500``): the 14 candidate fits take 10 s instead of 35 s and
+  the springs per direction 2 s instead of 9 s, with the same verdict and numbers; but the
+  bases and a second compiled fit cost as much again: 106 s in all. On the 102-DoF frames
+  they are slower (81 s against 24–34 s).
+- *The persistent compilation cache*, warm from the same case: 103 → 95 s.
+- XLA at ``-O0``: compilation 35 → 25 s, the run slower by as much (110 s).
+
 The two-effect case took 680–800 s with the same code (killed in round 3 alone; 796 s in the
 test run) and is still wrong as above.
 """

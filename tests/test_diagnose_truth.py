@@ -32,11 +32,12 @@ def test_hidden_effect_from_an_independent_truth(case):
 
 
 KNOWN_WRONG = {  # case name → why the diagnosis does not yet get it right (strict: passing fails the test)
-    "garteur-joint-and-mass": "round 1 declares the tailplane mass at grid 7001 (right place, 0.17 of 0.25 kg); the "
-                              "wing–body joint RBE2 1013 is offered in round 2 but screens below the shortlist (fitted "
-                              "there anyway, a frequency law of the fuselage, pid 1, still fits better), and rounds 2 "
-                              "and 3 declare that law and 2.2 kg at fuselage grid 1028 in its place: partial, 680–800 s "
-                              "(issue 46)",
+    "garteur-joint-and-mass": "round 1 declares the tailplane mass at grid 7001 (right place, 0.17 of 0.25 kg, 0.27 "
+                              "after its confirming update); the wing–body joint RBE2 1013 is offered in round 2 but "
+                              "its scan screens 0.001: the truth's rotational stiffness lies 480× below the joint's "
+                              "reference, at the end of the scan, in a valley whose cost jumps with the pairing "
+                              "(test mode 6 unpaired until the joint is soft); a frequency law of the fuselage (pid 1) "
+                              "is declared instead: partial, 680–1120 s (issue 46)",
 }
 
 
