@@ -126,13 +126,14 @@ def _check_shared(model: Model, node: int, pids, dep: dict) -> None:
     """A grid released as shared by groups must have an element of ``pids[1:]`` at it:
     else the springs would hold a new grid nothing is attached to, a silent no-op
     (``joint:node=1013`` at the RBE2 master 1013 instead of its dependent grids)."""
-    if set(elements_at(model, node).values()) & set(pids[1:]):
+    at = set(elements_at(model, node).values())
+    if at & set(pids[1:]):
         return
     dependents = sorted(g for g, m in dep.items() if m == node)
     hint = (f"grid {node} is the master of an RBE2: give its dependent grids "
             f"({', '.join(map(str, dependents))}) as the joint's nodes" if dependents
             else f"give two pids meeting there (e.g. joint:node={node};pids=first,second: the second is released), of "
-                 f"{', '.join(map(str, sorted(set(elements_at(model, node).values())))) or 'none'}")
+                 f"{', '.join(map(str, sorted(at))) or 'none'}")
     raise ValueError(f"a joint at grid {node} releases nothing: it is not an RBE2-dependent grid and no element "
                      f"of pids {list(pids[1:]) or '(none given)'} is attached to it; {hint}")
 
