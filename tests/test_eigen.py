@@ -152,6 +152,19 @@ def test_rigid_body_modes_free_spring_chain():
     np.testing.assert_allclose(dl, ref, atol=1e-9 * kk)  # λ is linear in a stiffness scale
 
 
+def test_distinct_modes_beside_a_stiff_penalty_are_not_averaged():
+    """Modes 0.5 % apart under a penalty stiffness 10¹⁵ times theirs (a joint's stiff
+    springs): each keeps its own derivative, dλ₁/dk₁ = 1 and dλ₂/dk₁ = 0 (from the whole
+    spectrum's largest eigenvalue the threshold grouped them and gave ½ each)."""
+    rng = np.random.default_rng(3)
+    q, _ = np.linalg.qr(rng.standard_normal((11, 11)))
+    w = np.array([100.0, 100.5, 300, 700, 1.1e3, 2e3, 3e3, 4e3, 5e3, 6e3, 7e3])
+    k = jnp.asarray(sl.block_diag(q @ np.diag(w) @ q.T, 1e17))  # the penalty on a DoF of its own
+    dk = jnp.asarray(sl.block_diag(np.outer(q[:, 0], q[:, 0]), 0.0))
+    dlam = jax.jacfwd(lambda t: eigh(k + t * dk, jnp.eye(12), 2)[0])(0.0)
+    np.testing.assert_allclose(dlam, [1.0, 0.0], atol=1e-6)
+
+
 def test_float32_is_refused():
     with pytest.raises(TypeError, match="float64"):
         eigh(jnp.eye(3, dtype=jnp.float32), jnp.eye(3, dtype=jnp.float32))
