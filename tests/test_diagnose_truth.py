@@ -3,8 +3,8 @@ independent FE code (refined Timoshenko beams, RBE2 links as penalty springs, it
 joints, springs, masses and power-law visco-elastic stiffness) with one hidden effect and
 noise. Each case must declare the effect at its place (or list the place among the ties
 the sensors cannot separate) and bring the held-out frequency error below twice the
-noise; the controls must declare nothing. The GARTEUR cases take 55–85 s each on one thread
-beside another worker (2026-11-28)."""
+noise; the controls must declare nothing. The GARTEUR cases take 64–150 s each on one thread
+beside another worker (2026-12-02), the known-wrong two-effect case 770 s in three rounds."""
 
 import pytest
 
@@ -37,8 +37,9 @@ KNOWN_WRONG = {  # case name → why the diagnosis does not yet get it right (st
                               "its scan screens 0.001: the truth's rotational stiffness lies 480× below the joint's "
                               "reference, at the end of the scan, in a valley whose cost jumps with the pairing "
                               "(test mode 6 unpaired until the joint is soft); a frequency law of the fuselage (pid 1) "
-                              "is declared instead: partial, 680–1120 s (issue 46)",
+                              "is declared instead: partial, 770 s with three rounds (issue 46)",
 }
+KNOWN_WRONG_ROUNDS = 2  # the joint is missed in round 2; a third round only adds its minutes
 
 
 def _hard(case):
@@ -56,8 +57,9 @@ def test_harder_cases_from_an_independent_truth(case):
     numbers — no "outside the library" beside a candidate at noise, no "more than one
     effect" at all."""
     text, test, params, noise = measure_hard(case)
+    rounds = KNOWN_WRONG_ROUNDS if case.name in KNOWN_WRONG else DiagnoseOptions.rounds
     report = diagnose(jaxfem.build_model(read_bdf_text(text)), test, params,
-                      options=DiagnoseOptions(noise=noise)).to_json()
+                      options=DiagnoseOptions(noise=noise, rounds=rounds)).to_json()
     assert found_hard(report, case), report["verdict"]
     for d in report["declared"]:
         assert d["heldout_rms_freq_dev_pct_after"] < d["heldout_rms_freq_dev_pct_before"]
