@@ -157,6 +157,23 @@ of it over 165 programs, tracing 9 s, lowering 4 s — the rest runs):
 
 The two-effect case took 680–800 s with the same code (killed in round 3 alone; 796 s in the
 test run) and is still wrong as above.
+
+**The lever that was there: exact derivatives** (2026-12-02). Counting the compiled fit's
+steps showed nearly every fit running to ``max_steps`` (garteur-added-mass: 14 fits, 269
+steps for 88 accepted; the 8 cross-validation folds 146 for 30): the Jacobian on the
+candidates' model was wrong, by up to 100 % in a column against central differences.
+``jaxfem.eigh`` grouped eigenvalues closer than 1e3·ε·max|λ| over the whole spectrum,
+and the stiff joint springs of that model put max|λ| at 3·10¹⁵ (rad/s)²: modes at 31.6
+and 31.7 Hz, and three soft modes with the rigid-body ones, got their clusters' mean
+derivative. With the floor from the modes in use (docs/derivatives.md) the same case
+takes 201 steps for 123 accepted in its fits, 47 for 35 in the folds, and **75 s alone
+instead of 100 s** (one thread, instrumented), the same verdict (0.152 ± 0.001 kg at 2010).
+The truth suite (``pytest -n 2 tests/test_diagnose_truth.py``, same machine): **1,867 →
+1,246 s**, 17 passed and the two-effect strict xfail; per case beside another worker
+(s): added-mass 78, fin-joint 95, wing-joint 150, ground-spring 74, viscoelastic 132,
+stiffness 82, control 101, frames 16–24; wing-torsion 78, mass-mid-element 71,
+sparse-nose-spring 65, noisy-mass 64, uniform-damping 114, saturating-tape 148,
+joint-and-mass 770 (three rounds; the test now runs two).
 """
 
 from __future__ import annotations
