@@ -22,10 +22,9 @@ The last term is exact for massless DoFs: writing dφ = Φc + [0; w], the rows o
 remaining rows reduce to the expansion above with the full-length vectors.
 
 Degenerate policy: modes whose eigenvalues differ by less than
-``rtol·max(|λ_r|, |λ_s|) + atol`` (``atol = 10⁻⁸·max|λ|`` over the modes in use — the
-returned ones and the six above —, which groups the rigid-body modes, whose computed
-values are rounding noise; not over the whole spectrum, whose stiff penalty modes would
-group distinct modes) form a cluster. Within a cluster the eigenvectors are not unique, so the
+``rtol·max(|λ_r|, |λ_s|) + atol`` (``atol = 10⁻⁸·max|λ|`` over the returned modes, which
+groups the rigid-body modes, whose computed values are rounding noise; not over the
+whole spectrum, whose stiff penalty modes would group distinct modes) form a cluster. Within a cluster the eigenvectors are not unique, so the
 rule sets their mutual rotation coefficients to zero: the derivative of the cluster's
 spectral projector (and of anything invariant to the basis inside the cluster) is
 exact, and no division by a vanishing gap can occur. Eigenvalue derivatives in a
@@ -206,16 +205,16 @@ def _signs(phi: Array) -> Array:
     return jnp.where(big[0] < 0, -1.0, 1.0)
 
 
-RIGID_ATOL = 1e-8  # of the largest eigenvalue in use: rigid-body modes computed at ±3e-4 (rad/s)² beside a 34th mode at 6e6
+RIGID_ATOL = 1e-8  # of the largest returned eigenvalue: rigid-body modes computed at ±3e-4 (rad/s)² beside a 28th mode at 4e6
 
 
-def _clusters(lam: Float[Array, " k"], rtol: float, in_use: int | None = None) -> Array:
+def _clusters(lam: Float[Array, " k"], rtol: float, returned: int | None = None) -> Array:
     """Cluster index of each sorted eigenvalue (consecutive, transitive); the absolute
-    threshold from the first ``in_use`` (all: None). From the whole spectrum it grouped two
+    threshold from the first ``returned`` (all: None). From the whole spectrum it grouped two
     modes 0.5 % apart (31.6 and 31.7 Hz, and 0.5, 0.6 and 2.7 Hz with the rigid-body
     modes) where stiff joint springs put the highest mode at 3·10¹⁵, 10⁹ times the 34th:
     their derivatives were averaged, and every fit on that model stalled."""
-    atol = RIGID_ATOL * jnp.max(jnp.abs(lam[:in_use]))
+    atol = RIGID_ATOL * jnp.max(jnp.abs(lam[:returned]))
     gap = jnp.diff(lam)
     scale = jnp.maximum(jnp.abs(lam[1:]), jnp.abs(lam[:-1]))
     new = gap > rtol * scale + atol
@@ -258,7 +257,7 @@ def _eigh_jvp(primals, tangents, *, structure, n_modes, degenerate, rtol):
     gk = _tangent_matmul(K, dK, pe)
     gm = _tangent_matmul(M, dM, pe)
     g = gk - gm * lam[:m_ext]  # columns g_r = (dK − λ_r dM) φ_r
-    cluster = _clusters(lam, rtol, m_ext)
+    cluster = _clusters(lam, rtol, m)
     ce = cluster[:m_ext]
     same_e = ce[:, None] == ce[None, :]
     # Degenerate-subspace matrix D_rs = φ_rᵀ (dK − ½(λ_r+λ_s) dM) φ_s within clusters.

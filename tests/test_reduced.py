@@ -232,8 +232,9 @@ def test_a_springs_change_loads_are_kept_once():
 def test_padding_leaves_close_modes_their_own_derivatives():
     """A reduced problem's padding columns become modes just above its spectrum
     (``updating._eigensolvers.padded``), not 1e3× its stiffest DoF: modes 1 % apart keep
-    their own derivatives (jaxfem.eigh groups eigenvalues within 1e3·ε·max|λ|; at the old
-    padding, with a spring held stiff in the basis, the pair's derivatives were averaged)."""
+    their own derivatives (jaxfem.eigh grouped eigenvalues within 1e3·ε·max|λ| of the whole
+    spectrum; at the old padding, with a spring held stiff in the basis, the pair's
+    derivatives were averaged)."""
     from updating._eigensolvers import padded
 
     padding = jnp.asarray([False, False, False, False, True, True])
@@ -251,7 +252,8 @@ def test_padding_leaves_close_modes_their_own_derivatives():
     lam0 = np.asarray(lam(0.0))
     np.testing.assert_allclose(lam0, [1e4, 1.01e4, 5e4], rtol=1e-12)
     np.testing.assert_allclose(np.asarray(jax.jacfwd(lam)(0.0)), [1e4, 0.0, 0.0], atol=1e-6 * 1e4)
-    assert np.asarray(jax.jacfwd(lambda t: lam(t, old=True))(0.0))[1] > 1e3  # the old padding: averaged
+    # the old padding too, now that eigh's cluster floor comes from the returned modes alone
+    np.testing.assert_allclose(np.asarray(jax.jacfwd(lambda t: lam(t, old=True))(0.0)), [1e4, 0.0, 0.0], atol=1e-2)
     kr, mr = padded(jnp.diag(jnp.asarray([1e4, 2e4, 0.0])), jnp.diag(jnp.asarray([1.0, 0.5, 0.0])),
                     jnp.asarray([False, False, True]))
     assert 4e4 < float(kr[2, 2]) <= 2 * 2e4 / 0.5 + 1 and float(mr[2, 2]) == 1.0  # above λ_max = 4e4, no further
