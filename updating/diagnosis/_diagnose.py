@@ -191,7 +191,7 @@ def diagnose(model: Model, test: ModalData, parameters: ParameterSet | None = No
             break
         declared.append(Declared(k, top, confirmation))
         final = c.fit, c.heldout
-        if left.noise_like:
+        if left.noise_like or k == options.rounds:
             break
         at, p = _with_effect(at, p, declared[-1], k)
         r.run.say(f"round {k + 1}: searching again on the model with {len(declared)} effect(s), re-fitted together")
