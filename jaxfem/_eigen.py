@@ -24,9 +24,9 @@ remaining rows reduce to the expansion above with the full-length vectors.
 Degenerate policy: modes whose eigenvalues differ by less than
 ``rtol·max(|λ_r|, |λ_s|) + atol`` (``atol = 10⁻⁸·max|λ|`` over the returned modes, which
 groups the rigid-body modes, whose computed values are rounding noise; not over the
-whole spectrum, whose stiff penalty modes would group distinct modes) form a cluster. Within a cluster the eigenvectors are not unique, so the
-rule sets their mutual rotation coefficients to zero: the derivative of the cluster's
-spectral projector (and of anything invariant to the basis inside the cluster) is
+whole spectrum, whose stiff penalty modes would group distinct modes) form a cluster.
+Within a cluster the eigenvectors are not unique, so the rule sets their mutual
+rotation coefficients to zero: the derivative of the cluster's spectral projector (and of anything invariant to the basis inside the cluster) is
 exact, and no division by a vanishing gap can occur. Eigenvalue derivatives in a
 cluster come from the degenerate-subspace eigenproblem of
 ``D_rs = φ_rᵀ (dK − λ̄ dM) φ_s``: ``degenerate="mean"`` (default) returns for each
@@ -205,15 +205,12 @@ def _signs(phi: Array) -> Array:
     return jnp.where(big[0] < 0, -1.0, 1.0)
 
 
-RIGID_ATOL = 1e-8  # of the largest returned eigenvalue: rigid-body modes computed at ±3e-4 (rad/s)² beside a 28th mode at 4e6
+RIGID_ATOL = 1e-8  # × the largest returned eigenvalue; rigid-body modes came out at ±3e-4 beside a 28th mode at 4e6
 
 
 def _clusters(lam: Float[Array, " k"], rtol: float, returned: int | None = None) -> Array:
     """Cluster index of each sorted eigenvalue (consecutive, transitive); the absolute
-    threshold from the first ``returned`` (all: None). From the whole spectrum it grouped two
-    modes 0.5 % apart (31.6 and 31.7 Hz, and 0.5, 0.6 and 2.7 Hz with the rigid-body
-    modes) where stiff joint springs put the highest mode at 3·10¹⁵, 10⁹ times the 34th:
-    their derivatives were averaged, and every fit on that model stalled."""
+    threshold from the first ``returned`` of them (None: all), module docstring."""
     atol = RIGID_ATOL * jnp.max(jnp.abs(lam[:returned]))
     gap = jnp.diff(lam)
     scale = jnp.maximum(jnp.abs(lam[1:]), jnp.abs(lam[:-1]))

@@ -155,7 +155,7 @@ def test_rigid_body_modes_free_spring_chain():
 def test_distinct_modes_beside_a_stiff_penalty_are_not_averaged():
     """Modes 0.5 % apart under a penalty stiffness 10¹⁵ times theirs (a joint's stiff
     springs): each keeps its own derivative, dλ₁/dk₁ = 1 and dλ₂/dk₁ = 0 (from the whole
-    spectrum's largest eigenvalue the threshold grouped them and gave ½ each)."""
+    spectrum's largest eigenvalue the threshold grouped the lowest eight and gave ⅛ each)."""
     rng = np.random.default_rng(3)
     q, _ = np.linalg.qr(rng.standard_normal((11, 11)))
     w = np.array([100.0, 100.5, 300, 700, 1.1e3, 2e3, 3e3, 4e3, 5e3, 6e3, 7e3])
