@@ -26,8 +26,8 @@ Degenerate policy: modes whose eigenvalues differ by less than
 groups the rigid-body modes, whose computed values are rounding noise; not over the
 whole spectrum, whose stiff penalty modes would group distinct modes) form a cluster.
 Within a cluster the eigenvectors are not unique, so the rule sets their mutual
-rotation coefficients to zero: the derivative of the cluster's spectral projector (and of anything invariant to the basis inside the cluster) is
-exact, and no division by a vanishing gap can occur. Eigenvalue derivatives in a
+rotation coefficients to zero: the derivative of the cluster's spectral projector
+(and of anything invariant to the basis inside the cluster) is exact, and no division by a vanishing gap can occur. Eigenvalue derivatives in a
 cluster come from the degenerate-subspace eigenproblem of
 ``D_rs = φ_rᵀ (dK − λ̄ dM) φ_s``: ``degenerate="mean"`` (default) returns for each
 member the mean of its eigenvalues — the exact derivative of the cluster mean, linear
