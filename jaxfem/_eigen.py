@@ -21,19 +21,19 @@ The last term is exact for massless DoFs: writing dφ = Φc + [0; w], the rows o
 (K − λ_r M) dφ = −g_r + dλ_r M φ_r on the massless DoFs give K_bb w = −(g_r)_b, and the
 remaining rows reduce to the expansion above with the full-length vectors.
 
-Degenerate policy: modes whose eigenvalues differ by less than
-``rtol·max(|λ_r|, |λ_s|) + atol`` (``atol = 10⁻⁸·max|λ|`` over the returned modes, which
-groups the rigid-body modes, whose computed values are rounding noise; not over the
-whole spectrum, whose stiff penalty modes would group distinct modes) form a cluster.
-Within a cluster the eigenvectors are not unique, so the rule sets their mutual
-rotation coefficients to zero: the derivative of the cluster's spectral projector
-(and of anything invariant to the basis inside the cluster) is exact, and no division by a vanishing gap can occur. Eigenvalue derivatives in a
-cluster come from the degenerate-subspace eigenproblem of
+Degenerate policy: modes whose eigenvalues differ by less than ``rtol·max(|λ_r|, |λ_s|)
++ atol`` (``atol = 10⁻⁸·max|λ|`` over the returned modes, which groups the rigid-body
+modes, whose computed values are rounding noise; not over the whole spectrum, whose
+stiff penalty modes would group distinct modes) form a cluster. Within a cluster the
+eigenvectors are not unique, so the rule sets their mutual rotation coefficients to
+zero: the derivative of the cluster's spectral projector (and of anything invariant to
+the basis inside the cluster) is exact, and no division by a vanishing gap can occur.
+Eigenvalue derivatives in a cluster come from the degenerate-subspace eigenproblem of
 ``D_rs = φ_rᵀ (dK − λ̄ dM) φ_s``: ``degenerate="mean"`` (default) returns for each
-member the mean of its eigenvalues — the exact derivative of the cluster mean, linear
-in the tangent and so valid in reverse mode (``jax.grad``); ``degenerate="split"``
-returns the sorted eigenvalues of D — the one-sided directional derivatives of the
-sorted eigenvalues, valid in forward mode only (``jax.jvp``, ``jax.jacfwd``); under
+member the mean of its eigenvalues — the exact derivative of the cluster mean, linear in
+the tangent and so valid in reverse mode (``jax.grad``); ``degenerate="split"`` returns
+the sorted eigenvalues of D — the one-sided directional derivatives of the sorted
+eigenvalues, valid in forward mode only (``jax.jvp``, ``jax.jacfwd``); under
 ``jax.grad`` it raises ``NotImplementedError`` pointing to ``"mean"``.
 """
 
@@ -205,7 +205,7 @@ def _signs(phi: Array) -> Array:
     return jnp.where(big[0] < 0, -1.0, 1.0)
 
 
-RIGID_ATOL = 1e-8  # × the largest returned eigenvalue; rigid-body modes came out at ±3e-4 beside a 28th mode at 4e6
+RIGID_ATOL = 1e-8  # × the largest returned λ (rigid-body modes came out at ±3e-4 beside 4e6)
 
 
 def _clusters(lam: Float[Array, " k"], rtol: float, returned: int | None = None) -> Array:
