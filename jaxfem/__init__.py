@@ -51,6 +51,7 @@ from ._assembly import node_transform as node_transform
 from ._condensation import static_condensation as static_condensation
 from ._eager import compiled_when_eager as compiled_when_eager
 from ._eager import jit_over as jit_over
+from ._eager import FAST_COMPILE as FAST_COMPILE
 from ._edit import add_bush as add_bush
 from ._edit import add_grid as add_grid
 from ._edit import add_ground_springs as add_ground_springs

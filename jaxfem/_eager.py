@@ -21,17 +21,21 @@ import jax
 from ._model import Opaque
 
 KEPT = 8  # compiled calls kept per function
+FAST_COMPILE = {"xla_backend_optimization_level": 0, "xla_cpu_use_fusion_emitters": False}
+"""XLA options for programs run a few times per model: compiled several times faster,
+each run slower (an updating step 1.7×), as the test suite compiles everything."""
 
 
 def _is_jax(x) -> bool:
     return isinstance(x, jax.Array)
 
 
-def jit_over(fn: Callable, static, name: str | None = None) -> Callable:
+def jit_over(fn: Callable, static, name: str | None = None, compiler_options: dict | None = None) -> Callable:
     """``jax.jit`` of ``fn(*args, **kwargs)`` over the dynamic part of its arguments,
     ``static`` (the rest of ``(args, kwargs)``, as from ``eqx.partition``) bound: the
     returned function maps the dynamic part to ``fn``'s result, whose JAX arrays come out
-    of the compiled call and whose other values are those of the trace."""
+    of the compiled call and whose other values are those of the trace; ``compiler_options``:
+    XLA's (as :data:`FAST_COMPILE`)."""
     out_static = []
 
     def run(dyn):
@@ -41,14 +45,17 @@ def jit_over(fn: Callable, static, name: str | None = None) -> Callable:
         return dyn_out
 
     run.__name__ = name or getattr(fn, "__name__", "run")  # names the compilation in JAX's logs
-    jitted = jax.jit(run)
+    jitted = jax.jit(run, compiler_options=compiler_options)
     return lambda dyn: eqx.combine(jitted(dyn), out_static[0])
 
 
-def compiled_when_eager(fn: Callable) -> Callable:
+def compiled_when_eager(fn: Callable | None = None, *, compiler_options: dict | None = None) -> Callable:
     """``fn`` whose eager calls run compiled (:func:`jit_over`): JAX arrays among the
     arguments are traced, everything else (NumPy structure, Python numbers and strings)
-    is static, hashed by content (:class:`~jaxfem._model.Opaque`)."""
+    is static, hashed by content (:class:`~jaxfem._model.Opaque`). As
+    ``@compiled_when_eager(compiler_options=...)``, compiled with those XLA options."""
+    if fn is None:
+        return functools.partial(compiled_when_eager, compiler_options=compiler_options)
     cache: OrderedDict = OrderedDict()
 
     @functools.wraps(fn)
@@ -61,7 +68,7 @@ def compiled_when_eager(fn: Callable) -> Callable:
         if key in cache:
             cache.move_to_end(key)
         else:
-            cache[key] = jit_over(fn, static)
+            cache[key] = jit_over(fn, static, compiler_options=compiler_options)
             while len(cache) > KEPT:
                 cache.popitem(last=False)
         return cache[key](dynamic)

@@ -10,7 +10,7 @@ import pytest
 
 import jaxfem
 from benchmarks.frames import frame_bdf
-from jaxfem._eager import KEPT, compiled_when_eager
+from jaxfem._eager import FAST_COMPILE, KEPT, compiled_when_eager
 from jaxfem._model import Opaque
 from jaxfem.io import read_bdf_text
 
@@ -74,3 +74,18 @@ def test_only_the_last_calls_are_kept():
     assert [_compiles(lambda a=a: double(a)) for a in x] == [1] * len(x)
     assert _compiles(lambda: double(x[-1])) == 0
     assert _compiles(lambda: double(x[0])) == 1  # the oldest was released
+
+
+def test_compiler_options_reach_xla_and_change_no_number(frames):
+    """``compiled_when_eager(compiler_options=FAST_COMPILE)`` (the diagnosis' programs run a
+    few times) gives the default compilation's modes; an option XLA does not know is refused,
+    so the options are passed on."""
+    fast = compiled_when_eager(compiler_options=FAST_COMPILE)(lambda m: jaxfem.modes(m, 4))
+    lam, phi = fast(frames[0])
+    lam_d, phi_d = jaxfem.modes(frames[0], 4)
+    assert lam.dtype == jnp.float64
+    np.testing.assert_allclose(lam, lam_d, rtol=1e-11)
+    np.testing.assert_allclose(phi, phi_d, atol=1e-9 * float(np.abs(phi_d).max()))
+    wrong = compiled_when_eager(compiler_options={"xla_no_such_option": 1})(lambda x: 2 * x)
+    with pytest.raises(Exception, match="xla_no_such_option"):
+        wrong(jnp.ones(3))

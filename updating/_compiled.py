@@ -21,10 +21,11 @@ from jaxfem import jit_over
 
 class Compiled:
     """``eqx.filter_jit(fn)`` (arrays traced, everything else static and hashable) whose
-    compiled code lives only as long as this object."""
+    compiled code lives only as long as this object; ``compiler_options``: XLA's
+    (:data:`jaxfem.FAST_COMPILE` for a program run a few times)."""
 
-    def __init__(self, fn: Callable):
-        self._fn = fn
+    def __init__(self, fn: Callable, compiler_options: dict | None = None):
+        self._fn, self._options = fn, compiler_options
         self._cache: dict = {}
 
     def __call__(self, *args):
@@ -32,5 +33,5 @@ class Compiled:
         leaves, treedef = jax.tree.flatten(static)
         key = (treedef, tuple(leaves))
         if key not in self._cache:
-            self._cache[key] = jit_over(self._fn, (static, {}))
+            self._cache[key] = jit_over(self._fn, (static, {}), compiler_options=self._options)
         return self._cache[key]((dynamic, {}))

@@ -32,7 +32,7 @@ import scipy.linalg
 import scipy.sparse
 
 import jaxfem
-from jaxfem import Model, compiled_when_eager
+from jaxfem import FAST_COMPILE, Model, compiled_when_eager
 
 from .. import Problem, evaluate, paired_subspace, rows
 
@@ -79,7 +79,7 @@ def _tangent(model: Model, kind: str) -> Model:
     return jax.tree.map(jnp.asarray, zero)
 
 
-@compiled_when_eager
+@compiled_when_eager(compiler_options=FAST_COMPILE)
 def _assembly_jvp(model: Model, tangent):
     """K, M and their derivatives along ``tangent`` (values-shaped), compiled whole (one
     program for every kind; run eagerly, the JVP compiled hundreds of small ones: 52 s of
@@ -113,7 +113,7 @@ def _modes(problem: Problem, theta, model: Model):
     return ev, lam, phi, lambda b: scipy.linalg.cho_solve(factor, b), sigma
 
 
-@compiled_when_eager
+@compiled_when_eager(compiler_options=FAST_COMPILE)
 def _dense_modes(theta, problem: Problem):
     """The paired evaluation at θ, all modes, dense K and M: one compiled program (run
     eagerly, the pairing and densifying compiled some 60 small ones, 3.5 s of 7.5 cold)."""
@@ -122,7 +122,7 @@ def _dense_modes(theta, problem: Problem):
     return evaluate(theta, problem), lam, phi, K.todense(), M.todense()
 
 
-@compiled_when_eager
+@compiled_when_eager(compiler_options=FAST_COMPILE)
 def _row_derivatives(theta, problem: Problem, ev):
     """The weighted residual rows at ``ev`` and their forward derivatives in the paired
     (λ_j, Cφ_j), compiled whole."""

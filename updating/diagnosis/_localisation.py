@@ -19,7 +19,7 @@ import numpy as np
 import scipy.sparse.linalg
 
 import jaxfem
-from jaxfem import STIFFNESS_BLOCKS, STRUCTURAL_BLOCKS, Model
+from jaxfem import FAST_COMPILE, STIFFNESS_BLOCKS, STRUCTURAL_BLOCKS, Model
 
 from .. import Compiled, Problem, residuals
 
@@ -52,7 +52,7 @@ def parameter_reduction(problem: Problem, theta=None) -> np.ndarray:
     n_p = len(problem.parameterisation.parameters)
     theta = jnp.zeros(n_p) if theta is None else theta
 
-    r, J = Compiled(_stacked_with_jacobian)(theta, problem)
+    r, J = Compiled(_stacked_with_jacobian, FAST_COMPILE)(theta, problem)
     return reduction(np.asarray(r), np.asarray(J))
 
 

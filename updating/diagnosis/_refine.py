@@ -11,6 +11,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from jaxfem import Model
 
@@ -43,7 +44,7 @@ def threaded(fn, jobs: list, threads: int | None):
     if threads <= 1 or len(jobs) <= 1:
         yield from map(fn, jobs)
         return
-    with ThreadPoolExecutor(threads) as pool:
+    with threadpool_limits(1, user_api="blas"), ThreadPoolExecutor(threads) as pool:
         yield from pool.map(fn, jobs)
 
 

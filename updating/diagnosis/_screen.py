@@ -9,7 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxfem import Model
+from jaxfem import FAST_COMPILE, Model
 
 from .. import Compiled, Parameter, Problem, residuals
 from ._element_sensitivity import KINDS, ElementJacobian, element_jacobian
@@ -105,7 +105,7 @@ def _flat(theta, problem: Problem):
 def _baseline_columns(problem: Problem, theta, n_b: int) -> np.ndarray:
     if n_b == 0:
         return np.zeros((len(_row_modes(problem)), 0))
-    J = Compiled(jax.jacfwd(_flat))(jnp.asarray(theta), problem)
+    J = Compiled(jax.jacfwd(_flat), FAST_COMPILE)(jnp.asarray(theta), problem)
     return np.asarray(J)[:, :n_b]
 
 

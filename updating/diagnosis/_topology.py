@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from identification import shell_centres
-from jaxfem import STIFFNESS_BLOCKS, STRUCTURAL_BLOCKS, Model, compiled_when_eager
+from jaxfem import FAST_COMPILE, STIFFNESS_BLOCKS, STRUCTURAL_BLOCKS, Model, compiled_when_eager
 from jaxfem.elements import laminates, shell_mass, shell_stiffness
 
 
@@ -185,7 +185,7 @@ def total_mass(model: Model) -> float:
     return total + float(jnp.sum(model.masses.m * model.masses.m_scale))
 
 
-@compiled_when_eager
+@compiled_when_eager(compiler_options=FAST_COMPILE)
 def _shell_mass(model: Model, name: str):
     """Mass of the shells of block ``name`` (compiled whole: run eagerly it compiled some 240
     small programs, 18 s on a 33,000-DoF model)."""
