@@ -218,6 +218,24 @@ def test_candidate_fits_on_two_threads_equal_one_thread(joint):
         np.testing.assert_allclose(b.cost, a.cost, rtol=1e-9)
 
 
+def test_cross_validation_on_two_threads_equals_one_thread(joint):
+    """The folds of a cross-validation fitted on two threads: the same held-out costs and
+    per-mode Δf, MAC as one after another."""
+    from updating._eigensolvers import Direct
+    from updating.diagnosis._fit import cross_validate, fit, fold_masks
+    from updating.diagnosis._refine import on_threads
+
+    problem, fits, c, _, _ = joint
+    result = fit(fits, problem, c.ext, np.array([0.0, -4.6]), Direct())
+    masks = fold_masks(len(np.asarray(problem.lam_e)), 3)
+    one = cross_validate(fits, problem, c.ext, result, masks)
+    two = cross_validate(fits, problem, c.ext, result, masks, mapped=on_threads(2))
+    np.testing.assert_allclose([two.freq, two.shape], [one.freq, one.shape], rtol=1e-9)
+    np.testing.assert_allclose(two.freq_dev, one.freq_dev, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(two.mac, one.mac, rtol=1e-9, atol=1e-12)
+    assert np.isfinite(one.freq_dev).sum() > len(one.freq_dev) // 2  # compared on numbers, not NaN alone
+
+
 def test_fits_on_threads_call_blas_on_one_thread_each():
     """Two fits on two threads, each calling a two-thread OpenBLAS, oversubscribed two cores
     (garteur-added-mass alone: 77–85 s, 56–67 s with one BLAS thread per fit): inside

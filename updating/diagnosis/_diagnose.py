@@ -109,7 +109,7 @@ from ._localisation import group_scores, residual_forces
 from ._options import DiagnoseOptions
 from ._ray_fits import fit_candidates_ray
 from ._reduced import Bases
-from ._refine import POINT_WALK, refine_directions, refine_patches, refine_places, refine_seams, threaded
+from ._refine import POINT_WALK, on_threads, refine_directions, refine_patches, refine_places, refine_seams, threaded
 from ._topology import total_mass
 from ._confirm import confirm_on_fit, free_parameters
 from ._verdict import Baseline, Declared, Withdrawn, state, verdict
@@ -359,7 +359,7 @@ def _baseline(run: _Run, aug: Model, ne: int) -> tuple[Fit, object, list]:
         run.bases = Bases(with_extension(problem, run.none), base.theta)
         run.say(f"reduced models for the candidates: {run.bases.common.shape[1]} baseline columns "
                 f"(modes and static corrections), {run.elapsed()}")
-    return base, cross_validate(run.fits, problem, run.none, base, masks, run.solver(None)), masks
+    return base, cross_validate(run.fits, problem, run.none, base, masks, run.solver(None), on_threads(run.options.threads)), masks
 
 
 def _candidates(run: _Run, model: Model, where: _Where, base: Fit, f_e):
@@ -420,9 +420,8 @@ def _fit_shortlist(run: _Run, short: list[Candidate], structural, base: Fit, mod
         for c, result in zip(more, threaded(one, list(enumerate(more, 1)), options.threads)):
             c.fit = result
 
-    # each from the better of the linearised step and none (the joints' scans are done); the
-    # first of a family with a compiled fit of its own (a law) first: it compiles on one
-    # thread while the others fit (last, it compiled alone: 10 s of a 94 s diagnosis)
+    # each from the better of the linearised step and none (the joints' scans are done); a law's
+    # own compiled fit first, compiling on one thread while the others fit (last, alone: 10 s)
     order = sorted(short, key=lambda c: c.family)
     own = [next(c for c in order if c.family == f) for f in dict.fromkeys(c.family for c in order) if f != "mask"]
     order = own + [c for c in order if c not in own]
@@ -465,7 +464,8 @@ def _rank(run: _Run, short: list[Candidate], cands: list[Candidate], base: Fit, 
             c.fit = _on_full_model(run, c)
     say(f"cross-validating the {len(top)} most probable ({len(masks) - 1} folds, {run.elapsed()})")
     for c in top:
-        c.heldout = cross_validate(run.fits, run.problem, c.ext, c.fit, masks, run.solver(c))
+        c.heldout = cross_validate(run.fits, run.problem, c.ext, c.fit, masks, run.solver(c),
+                                   on_threads(run.options.threads))
     return evidence(short, base, base_held, n_b, n_rows, run.sigma2, mass, f_sd)
 
 

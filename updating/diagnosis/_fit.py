@@ -214,12 +214,13 @@ def fit(fits: Fits, problem: Problem, ext: Extension, theta0, solver: AbstractEi
 
 
 def cross_validate(fits: Fits, problem: Problem, ext: Extension, result: Fit, masks,
-                   solver: AbstractEigensolver = Direct()) -> HeldOut:
-    """Held-out costs and Δf, MAC per test mode, each fold fitted from the all-modes fit."""
+                   solver: AbstractEigensolver = Direct(), mapped=map) -> HeldOut:
+    """Held-out costs and Δf, MAC per test mode, each fold fitted from the all-modes fit;
+    ``mapped(fn, folds)``: the folds' fits in order (on threads: :func:`~updating.diagnosis._refine.threaded`)."""
     lam_e = np.asarray(problem.lam_e)
     dev, macs_out, cf, cs = np.full(len(lam_e), np.nan), np.full(len(lam_e), np.nan), 0.0, 0.0
-    for m in masks[1:]:
-        _, _, (hf, hs), lam_a, paired, macs, _ = fits.solve(result.theta, with_extension(problem, ext, m), solver)
+    solved = mapped(lambda m: fits.solve(result.theta, with_extension(problem, ext, m), solver), masks[1:])
+    for m, (_, _, (hf, hs), lam_a, paired, macs, _) in zip(masks[1:], solved):
         cf += float(hf)
         cs += float(hs)
         dev[~m] = _deviation(np.asarray(lam_a), np.asarray(paired), lam_e)[~m]

@@ -48,6 +48,11 @@ def threaded(fn, jobs: list, threads: int | None):
         yield from pool.map(fn, jobs)
 
 
+def on_threads(threads: int | None):
+    """``mapped(fn, jobs)``: :func:`threaded` as a list, for :func:`~updating.diagnosis._fit.cross_validate`'s folds."""
+    return lambda fn, jobs: list(threaded(fn, list(jobs), threads))
+
+
 def _climb(best: Candidate, fitted_neighbours, onward=None) -> list[tuple[Candidate, Candidate]]:
     """Move from ``best`` to its best-fitting neighbour while that fits better;
     ``fitted_neighbours(c)``: the neighbours of ``c`` to compare, fitted; ``onward(a, b)``:
