@@ -177,6 +177,45 @@ joint-and-mass 770 (three rounds; the test now runs two). garteur-added-mass alo
 thread, not instrumented: **77.2 s** at XLA's default flags (as ``jaxfem diagnose`` runs),
 **59.8 s** with the test suite's ``-O0`` and older fusion emitters (tests/conftest.py): the
 compilation saved outweighs the slower evaluation (113 against 68 ms with its Jacobian).
+
+**Threads that fight, and fits that were not needed** (2026-12-02, each case alone in a
+fresh process, 2-core x86-64, the defaults; seconds of ``diagnose`` itself, the truth's
+own solve not counted). On this machine garteur-added-mass took 77–85 s with the code
+above (four runs). Four changes:
+- BLAS on one thread per fit while the fits run on two threads (threadpoolctl): two
+  two-thread OpenBLAS calls oversubscribed the two cores. 56–67 s (four runs).
+- The diagnosis' run-once programs (element sensitivities, screen, localisation
+  Jacobian) compiled with ``jaxfem.FAST_COMPILE``: 51–63 s (four runs). The candidate fit
+  keeps XLA's optimisation (-O0 made each step 1.7× slower), and so does jaxfem's own
+  assembly (at 33k DoFs -O0 compiled it 1.3 s faster and ran it 1.8× slower).
+- A place walk or a spring's directions only for a candidate taking half the best's cost
+  reduction (as patches and seams): on the wing joint a spring far behind it walked six
+  grids (17 s); and a law's own compiled fit started first, compiling beside the other
+  fits instead of alone at the end (about 10 s).
+- The cross-validation folds on the threads (8 joint folds took 15 s one after another).
+
+| case | right | s, changes 1–2 | 1–3 | 1–4 |
+|---|---|---|---|---|
+| garteur-added-mass | yes | 53.3 | 53.2 | 58.9 |
+| garteur-fin-joint | yes | 66.2 | 53.8 | 54.4 |
+| garteur-wing-joint | yes | 113.4 | 83.0 | 73.8 |
+| garteur-ground-spring | yes | 56.6 | 58.1 | 53.3 |
+| garteur-viscoelastic | yes | 93.5 | 84.9 | 68.3 |
+| garteur-stiffness | yes | – | 68.1 | 65.2 |
+| garteur-control | yes | – | 87.2 | 82.2 |
+| garteur-wing-torsion | yes | – | 71.4 | 61.9 |
+| garteur-mass-mid-element | yes | – | – | 55.1 |
+| garteur-sparse-nose-spring | yes | – | 68.8 | 60.0 |
+| garteur-noisy-mass | yes | – | 59.8 | 51.9 |
+| garteur-uniform-damping | yes | – | 115.5 | 97.1 |
+| garteur-saturating-tape | yes | – | 89.1 | 83.2 |
+
+(–: not run; one run per cell, run to run ±5 s.) 13/13 right; 6 of 13 within 60 s (2 of
+13 on 2026-11-29), the slowest 97 s (130 s). Where the rest goes: the candidate fits with a frequency law (a law's fit compiles its own
+program, ~10 s, and each of its evaluations solves every mode's own eigenproblem):
+control, damping and the two law cases fit 15–18 candidates in 37–47 s; the damping part
+16 s (522 regions, 13 s); the baseline fit with the one compilation of the candidate
+fit 10–13 s; the screen 9–10 s.
 """
 
 from __future__ import annotations
