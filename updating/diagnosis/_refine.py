@@ -36,7 +36,8 @@ def threaded(fn, jobs: list, threads: int | None):
     """``fn(job)`` of each job, in order, on ``threads`` threads (None: one per CPU this
     process may use, at most ``OMP_NUM_THREADS`` where that is set: a process given one
     thread, as a test worker beside others is, fits one candidate at a time). The fits
-    share one compiled solver."""
+    share one compiled solver; on threads, BLAS and LAPACK run on one thread each (two
+    two-thread OpenBLAS calls oversubscribed two cores: a diagnosis 77–85 s, 56–67 s so)."""
     if threads is None:
         threads = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
         budget = os.environ.get("OMP_NUM_THREADS", "")
