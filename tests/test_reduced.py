@@ -201,7 +201,7 @@ def test_a_groups_factor_is_projected_once(joint):
 def test_candidate_fits_on_two_threads_equal_one_thread(joint):
     """The diagnosis fits its candidates on a thread per CPU (one compiled fit shared): the
     same θ₀, θ and cost, in the same order, as one after another."""
-    from updating.diagnosis._refine import threaded as _threaded
+    from updating.diagnosis._fit import threaded as _threaded
     from updating._eigensolvers import Direct
     from updating.diagnosis._fit import candidate_fit
 
@@ -223,13 +223,12 @@ def test_cross_validation_on_two_threads_equals_one_thread(joint):
     per-mode Δf, MAC as one after another."""
     from updating._eigensolvers import Direct
     from updating.diagnosis._fit import cross_validate, fit, fold_masks
-    from updating.diagnosis._refine import on_threads
 
     problem, fits, c, _, _ = joint
     result = fit(fits, problem, c.ext, np.array([0.0, -4.6]), Direct())
     masks = fold_masks(len(np.asarray(problem.lam_e)), 3)
     one = cross_validate(fits, problem, c.ext, result, masks)
-    two = cross_validate(fits, problem, c.ext, result, masks, mapped=on_threads(2))
+    two = cross_validate(fits, problem, c.ext, result, masks, threads=2)
     np.testing.assert_allclose([two.freq, two.shape], [one.freq, one.shape], rtol=1e-9)
     np.testing.assert_allclose(two.freq_dev, one.freq_dev, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(two.mac, one.mac, rtol=1e-9, atol=1e-12)
@@ -242,7 +241,7 @@ def test_fits_on_threads_call_blas_on_one_thread_each():
     ``threaded`` BLAS runs on one thread, and the process' setting returns after it."""
     from threadpoolctl import threadpool_info, threadpool_limits
 
-    from updating.diagnosis._refine import threaded as _threaded
+    from updating.diagnosis._fit import threaded as _threaded
 
     blas = lambda _: sorted({i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"})  # noqa: E731
     with threadpool_limits(2, user_api="blas"):

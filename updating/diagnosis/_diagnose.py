@@ -103,13 +103,14 @@ from ._fit import (
     fit,
     fold_masks,
     scan_costs,
+    threaded,
     with_extension,
 )
 from ._localisation import group_scores, residual_forces
 from ._options import DiagnoseOptions
 from ._ray_fits import fit_candidates_ray
 from ._reduced import Bases
-from ._refine import POINT_WALK, on_threads, refine_directions, refine_patches, refine_places, refine_seams, threaded
+from ._refine import POINT_WALK, refine_directions, refine_patches, refine_places, refine_seams
 from ._topology import total_mass
 from ._confirm import confirm_on_fit, free_parameters
 from ._verdict import Baseline, Declared, Withdrawn, state, verdict
@@ -359,7 +360,7 @@ def _baseline(run: _Run, aug: Model, ne: int) -> tuple[Fit, object, list]:
         run.bases = Bases(with_extension(problem, run.none), base.theta)
         run.say(f"reduced models for the candidates: {run.bases.common.shape[1]} baseline columns "
                 f"(modes and static corrections), {run.elapsed()}")
-    return base, cross_validate(run.fits, problem, run.none, base, masks, run.solver(None), on_threads(run.options.threads)), masks
+    return base, cross_validate(run.fits, problem, run.none, base, masks, run.solver(None), run.options.threads), masks
 
 
 def _candidates(run: _Run, model: Model, where: _Where, base: Fit, f_e):
@@ -464,8 +465,7 @@ def _rank(run: _Run, short: list[Candidate], cands: list[Candidate], base: Fit, 
             c.fit = _on_full_model(run, c)
     say(f"cross-validating the {len(top)} most probable ({len(masks) - 1} folds, {run.elapsed()})")
     for c in top:
-        c.heldout = cross_validate(run.fits, run.problem, c.ext, c.fit, masks, run.solver(c),
-                                   on_threads(run.options.threads))
+        c.heldout = cross_validate(run.fits, run.problem, c.ext, c.fit, masks, run.solver(c), run.options.threads)
     return evidence(short, base, base_held, n_b, n_rows, run.sigma2, mass, f_sd)
 
 

@@ -5,13 +5,9 @@ ground at a free grid are tried on each translation alone."""
 
 from __future__ import annotations
 
-import os
-from concurrent.futures import ThreadPoolExecutor
-
 from dataclasses import replace
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 from jaxfem import Model
 
@@ -25,33 +21,11 @@ from ._candidates import (
     with_masks,
 )
 from ._effects import AbstractPatch, BoundarySpring, Seam
-from ._fit import Fit, Fits, scan_start
+from ._fit import Fit, Fits, scan_start, threaded
 from ._topology import total_mass
 
 POINT_WALK = ("added_mass", "boundary_spring")  # the kinds the place walk moves from grid to grid
 CLIMB_SHARE = 0.5  # a patch kind or a seam is refined when it takes this share of the best candidate's cost reduction
-
-
-def threaded(fn, jobs: list, threads: int | None):
-    """``fn(job)`` of each job, in order, on ``threads`` threads (None: one per CPU this
-    process may use, at most ``OMP_NUM_THREADS`` where that is set: a process given one
-    thread, as a test worker beside others is, fits one candidate at a time). The fits
-    share one compiled solver; on threads, BLAS and LAPACK run on one thread each (two
-    two-thread OpenBLAS calls oversubscribed two cores: a diagnosis 77–85 s, 56–67 s so)."""
-    if threads is None:
-        threads = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-        budget = os.environ.get("OMP_NUM_THREADS", "")
-        threads = min(threads, int(budget)) if budget.isdigit() and int(budget) > 0 else threads
-    if threads <= 1 or len(jobs) <= 1:
-        yield from map(fn, jobs)
-        return
-    with threadpool_limits(1, user_api="blas"), ThreadPoolExecutor(threads) as pool:
-        yield from pool.map(fn, jobs)
-
-
-def on_threads(threads: int | None):
-    """``mapped(fn, jobs)``: :func:`threaded` as a list, for :func:`~updating.diagnosis._fit.cross_validate`'s folds."""
-    return lambda fn, jobs: list(threaded(fn, list(jobs), threads))
 
 
 def _climb(best: Candidate, fitted_neighbours, onward=None) -> list[tuple[Candidate, Candidate]]:
