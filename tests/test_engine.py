@@ -180,3 +180,20 @@ def test_one_rule_for_the_number_of_model_modes(frame):
     assert n_model_modes(model, 5) == 11 and n_model_modes(model, 10) == 20
     assert n_model_modes(model, 5, 9) == 9
     assert n_model_modes(model, 10 * n_free) == n_free
+
+
+def test_a_scan_cost_is_the_cost_of_a_fit_without_a_step(frame):
+    """A diagnosis' scan point (``Fits.cost``, its own compiled function without step or
+    Jacobian) costs what the fit evaluated at θ₀ without a step does."""
+    from updating.diagnosis._fit import Fits, with_extension
+    from updating._extension import extension
+
+    model, pset, truth, sensors = frame
+    problem = build_problem(model, simulate_test(truth, sensors, 6), pset)
+    beams = np.asarray(problem.model(jnp.zeros(3)).beams.ids)
+    p = with_extension(problem, extension(problem.model(jnp.zeros(3)), k_log=beams[:3]), np.ones(6, bool))
+    fits = Fits(Settings(False, 1e-10, 30, 120))
+    for theta0 in ([0.0, 0.0, 0.0, 0.2], [0.1, -0.2, 0.0, -1.5]):
+        cost = fits.cost(theta0, p)
+        assert cost > 0
+        np.testing.assert_allclose(cost, float(sum(fits.solve(theta0, p, skip=True)[1])), rtol=1e-10)

@@ -97,13 +97,19 @@ def _solve_one(theta0, problem: Problem, settings: Settings, skip, solver: Abstr
     return state.theta, fit, held, ev.lam_a, ev.paired, ev.mac, jac[:-state.theta.shape[0]], loop
 
 
+def _cost_one(theta, problem: Problem, solver: AbstractEigensolver):
+    """The cost of :func:`_solve_one` at θ without its step and Jacobian (a scan point)."""
+    ev = solver(theta, problem, jnp.zeros(0))[0]
+    return sum(_cost_parts(theta, problem, problem.active, ev))
+
+
 class Fits:
     """The compiled fit of one diagnosis (freed with it, see :mod:`._compiled`); a cost
     is the fit without a step (one compiled function, not two). ``solver``: the problem's
     own eigensolver (:class:`Direct`) or a candidate's reduced one."""
 
     def __init__(self, settings: Settings):
-        self._solve, self.settings = Compiled(_solve_one), settings
+        self._solve, self._cost, self.settings = Compiled(_solve_one), Compiled(_cost_one), settings
 
     def solve(self, theta0, problem: Problem, solver: AbstractEigensolver = Direct(), skip: bool = False):
         """θ₀ padded with inert zeros to the engineer's parameters and :data:`EXTENSION_PARAMS`:
@@ -121,17 +127,21 @@ class Fits:
                     np.asarray(history.freq_dev)[:rows_], np.asarray(history.mac)[:rows_], bool(converged), start, end)
 
     def _run(self, theta0, problem: Problem, solver: AbstractEigensolver, skip: bool):
-        theta0 = jnp.asarray(theta0)
-        n = theta0.shape[0]
-        width = max(n, len(problem.parameterisation.parameters) + EXTENSION_PARAMS)
-        out = self._solve(jnp.pad(theta0, (0, width - n)), problem, self.settings, jnp.asarray(skip), solver)
+        n = jnp.asarray(theta0).shape[0]
+        out = self._solve(self._padded(theta0, problem), problem, self.settings, jnp.asarray(skip), solver)
         return (out[0][:n], *out[1:-2], out[-2][:, :n], out[-1])
+
+    @staticmethod
+    def _padded(theta, problem: Problem):
+        theta = jnp.asarray(theta)
+        width = max(theta.shape[0], len(problem.parameterisation.parameters) + EXTENSION_PARAMS)
+        return jnp.pad(theta, (0, width - theta.shape[0]))
 
     def cost(self, theta, problem: Problem, solver: AbstractEigensolver = Direct()) -> float:
         """The cost at θ; inf where the model there is not solvable (a point of a scan that
         makes K + σM indefinite is no candidate's start: :func:`fit` reports it likewise)."""
         try:
-            return float(sum(self.solve(theta, problem, solver, skip=True)[1]))
+            return float(self._cost(self._padded(theta, problem), problem, solver))
         except (RuntimeError, ValueError) as err:
             if not unsolvable(err):
                 raise
