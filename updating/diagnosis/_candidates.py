@@ -69,6 +69,7 @@ class Candidate:
     screen: float = float("nan")
     theta0: np.ndarray | None = None
     prior_mean: float | np.ndarray = 0.0
+    nested: float = float("inf")  # a law: linearised ln B of its coefficient over its group's factor alone
     released: Released | None = None  # a released joint, seam or support: its springs in the shared model
     fit: Fit | None = None
     heldout: HeldOut | None = None
@@ -276,11 +277,13 @@ def augment(model: Model, nodes: list[int], structures: list[AbstractEffect], f_
     return model, dormant, stiffened
 
 
-def group_candidates(model: Model, aug: Model, params: tuple[Parameter, ...], screen: Screen) -> list[Candidate]:
+def group_candidates(model: Model, aug: Model, params: tuple[Parameter, ...], screen: Screen,
+                     sigma2: float) -> list[Candidate]:
     """Stiffness, mass and frequency law of the property groups (and halves) each kind
     offers, the stiffness and mass of the whole structure and of the best-screening groups
     together (:func:`_wider`), but not the engineer's parameters; screened by their joint
-    residual reduction."""
+    residual reduction (a law also by its linearised evidence over its group's factor, at
+    the rows' noise σ²)."""
     taken = {(p.kind, tuple(sorted(param_eids(model, p).tolist()))) for p in params}
     out = []
     for kind in (GroupStiffness, GroupMass, FrequencyDependentStiffness):
@@ -289,12 +292,12 @@ def group_candidates(model: Model, aug: Model, params: tuple[Parameter, ...], sc
             if (effect.kind, tuple(sorted(ids.tolist()))) in taken:
                 continue  # already a baseline parameter
             taken.add((effect.kind, tuple(sorted(ids.tolist()))))
-            out.append(_group_candidate(effect, model, aug, screen))
+            out.append(_group_candidate(effect, model, aug, screen, sigma2))
     for effect in _wider(model, out):
         ids = tuple(sorted(effect.elements(model).tolist()))
         if (effect.kind, ids) not in taken:
             taken.add((effect.kind, ids))
-            out.append(_group_candidate(effect, model, aug, screen))
+            out.append(_group_candidate(effect, model, aug, screen, sigma2))
     return out
 
 
@@ -317,14 +320,16 @@ def _wider(model: Model, groups: list[Candidate]) -> list[AbstractEffect]:
     return [e for e in out if e.pids]
 
 
-def _group_candidate(effect: AbstractEffect, model: Model, aug: Model, screen: Screen) -> Candidate:
-    """A group effect at its reference, screened by its joint residual reduction."""
+def _group_candidate(effect: AbstractEffect, model: Model, aug: Model, screen: Screen, sigma2: float) -> Candidate:
+    """A group effect at its reference, screened by its joint residual reduction; a law
+    also by the linearised evidence of its coefficient over its group's factor (``nested``)."""
     ref = effect.at_reference(model, screen.f_e)
     c = Candidate(ref, ref.extension(model, aug))
     g = screen.column(ref.scales, effect.elements(model))
     cols = screen.law_columns(g) if c.ext.visco else g
     c.screen = float(screen.rho(cols, joint=True))
     if c.ext.visco:  # start at the linearised step (E0 factor 1 + u, law coefficient a) or on a grid
+        c.nested = screen.added_log_evidence(g, cols[:, 1:], ref.prior_sd[1], sigma2)
         u, a = screen.step(cols)
         c.scan = (tuple(np.log1p([np.clip(u, -0.5, 1.0), np.clip(a, -0.7, 1.7)])),) + ref.scan
     return c
@@ -460,13 +465,16 @@ def shortlist(cands: list[Candidate], best: int, per_kind: int, kinds, within: f
     """The ``best`` screened candidates overall, and of each kind those screening at least
     ``within`` of the kind's best, at most ``per_kind``; frequency laws only where their
     linearised remainder 1 − ρ is within :data:`LAW_REMAINDER` times the best other
-    candidate's (a law has its group's factor and one more parameter: screening well below
-    a simpler candidate it cannot win by evidence, and its fits solve a frequency-dependent
-    eigenproblem, a compiled fit of their own: 22–29 s of a GARTEUR diagnosis)."""
+    candidate's and whose coefficient's linearised evidence over its group's factor alone
+    (``nested``) is positive (a law has its group's factor and one more parameter: screening
+    well below a simpler candidate, or no better than its own factor, it cannot win by
+    evidence, and its fits solve a frequency-dependent eigenproblem, a compiled fit of
+    their own: 22–29 s of a GARTEUR diagnosis)."""
     screened = sorted(cands, key=lambda c: -np.nan_to_num(c.screen, nan=-np.inf))
     law = FrequencyDependentStiffness.kind
     other = max((c.screen for c in screened if c.reference.kind != law and np.isfinite(c.screen)), default=0.0)
-    screened = [c for c in screened if c.reference.kind != law or 1 - c.screen <= LAW_REMAINDER * (1 - other)]
+    screened = [c for c in screened if c.reference.kind != law
+                or (1 - c.screen <= LAW_REMAINDER * (1 - other) and c.nested > 0)]
     short = screened[:best]
     for kind in kinds:
         of_kind = [c for c in screened if c.reference.kind == kind]

@@ -380,7 +380,7 @@ def _candidates(run: _Run, model: Model, where: _Where, base: Fit, f_e):
     points = node_candidates(aug, where.dormant, screen)
     walk = [c.reference.kind in POINT_WALK and c.reference.nodes[0] in where.beyond for c in points]
     walk_only = [c for c, w in zip(points, walk) if w and c.reference.kind in options.kinds]
-    cands = group_candidates(model, aug, run.params, screen) + [c for c, w in zip(points, walk) if not w]
+    cands = group_candidates(model, aug, run.params, screen, run.sigma2) + [c for c, w in zip(points, walk) if not w]
     cands = [c for c in cands if c.reference.kind in where.kinds] + patch_candidates(model, where.nodes, screen, patches)
     structural = structural_candidates(aug, where.stiffened)
     if run.bases is not None:  # the joints can only push other candidates off the shortlist

@@ -86,6 +86,19 @@ class Screen:
         a = np.concatenate([self.J_b, columns], axis=1)[rows]
         return np.linalg.lstsq(a, -self.r[rows], rcond=1e-10)[0][self.J_b.shape[1]:]
 
+    def added_log_evidence(self, columns: np.ndarray, extra: np.ndarray, sd: float, sigma2: float) -> float:
+        """Linearised ln B of one more column ``extra`` (its amplitude's prior N(0, sd²))
+        beside ``columns`` and the baseline's, the rows' noise σ² (χ² = ‖r‖²/σ²): for a
+        linear Gaussian model ``½ b²/(h + 1/sd²) − ½ ln(1 + h sd²)``, ``h = ‖j⊥‖²/σ²``,
+        ``b = j⊥ᵀr/σ²``, ``j⊥`` the column with the others projected out; on all rows or
+        on the :meth:`linear` rows, whichever is higher (as :meth:`rho`)."""
+        def on(rows):
+            q, _ = np.linalg.qr(np.concatenate([self.J_b, columns], axis=1)[rows])
+            j = extra[rows, 0] - q @ (q.T @ extra[rows, 0])
+            h, b = float(j @ j) / sigma2, float(j @ self.r[rows]) / sigma2
+            return 0.5 * b * b / (h + 1 / sd ** 2) - 0.5 * np.log1p(h * sd ** 2)
+        return max(on(np.ones(len(self.r), bool)), on(self.linear()))
+
     def law_columns(self, g: np.ndarray) -> np.ndarray:
         """A stiffness column and its frequency law: ``g`` and ``g·ln(f/f_ref)``."""
         return np.concatenate([g, g * np.log(self.f_e[self.row_mode] / self.f_ref)[:, None]], axis=1)
