@@ -104,9 +104,10 @@ def _cost_one(theta, problem: Problem, solver: AbstractEigensolver):
 
 
 class Fits:
-    """The compiled fit of one diagnosis (freed with it, see :mod:`._compiled`); a cost
-    is the fit without a step (one compiled function, not two). ``solver``: the problem's
-    own eigensolver (:class:`Direct`) or a candidate's reduced one."""
+    """The compiled fit of one diagnosis (freed with it, see :mod:`._compiled`) and its
+    compiled cost, the fit's evaluation without step or Jacobian (a scan point: 75 ms
+    against 250 ms through the fit at 628 DoFs). ``solver``: the problem's own eigensolver
+    (:class:`Direct`) or a candidate's reduced one."""
 
     def __init__(self, settings: Settings):
         self._solve, self._cost, self.settings = Compiled(_solve_one), Compiled(_cost_one), settings
