@@ -17,6 +17,8 @@ import jax.numpy as jnp
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from jaxfem import FAST_COMPILE
+
 from .. import (
     AbstractEigensolver,
     Compiled,
@@ -107,10 +109,12 @@ class Fits:
     """The compiled fit of one diagnosis (freed with it, see :mod:`._compiled`) and its
     compiled cost, the fit's evaluation without step or Jacobian (a scan point: 75 ms
     against 250 ms through the fit at 628 DoFs). ``solver``: the problem's own eigensolver
-    (:class:`Direct`) or a candidate's reduced one."""
+    (:class:`Direct`) or a candidate's reduced one. Both are compiled with
+    :data:`jaxfem.FAST_COMPILE`: a diagnosis compiles them a few times and runs each some
+    hundred steps, and compiling dominated (a GARTEUR fit 12.5 s to compile)."""
 
     def __init__(self, settings: Settings):
-        self._solve, self._cost, self.settings = Compiled(_solve_one), Compiled(_cost_one), settings
+        self._solve, self._cost, self.settings = Compiled(_solve_one, FAST_COMPILE), Compiled(_cost_one, FAST_COMPILE), settings
 
     def solve(self, theta0, problem: Problem, solver: AbstractEigensolver = Direct(), skip: bool = False):
         """θ₀ padded with inert zeros to the engineer's parameters and :data:`EXTENSION_PARAMS`:
