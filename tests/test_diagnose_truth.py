@@ -4,7 +4,7 @@ joints, springs, masses and power-law visco-elastic stiffness) with one hidden e
 noise. Each case must declare the effect at its place (or list the place among the ties
 the sensors cannot separate) and bring the held-out frequency error below twice the
 noise; the controls must declare nothing. The GARTEUR cases take 64–150 s each on one thread
-beside another worker (2026-12-02), the known-wrong two-effect case 770 s in three rounds."""
+beside another worker (2026-12-02)."""
 
 import pytest
 
@@ -31,24 +31,8 @@ def test_hidden_effect_from_an_independent_truth(case):
     assert top["heldout_rms_freq_dev_pct_after"] < 2 * 100 * NOISE_F
 
 
-KNOWN_WRONG = {  # case name → why the diagnosis does not yet get it right (strict: passing fails the test)
-    "garteur-joint-and-mass": "round 1 declares the tailplane mass at grid 7001 (right place, 0.17 of 0.25 kg, 0.27 "
-                              "after its confirming update); the wing–body joint RBE2 1013 is offered in round 2 but "
-                              "its scan screens 0.001: the truth's rotational stiffness lies 480× below the joint's "
-                              "reference, at the end of the scan, in a valley whose cost jumps with the pairing "
-                              "(test mode 6 unpaired until the joint is soft); a frequency law of the fuselage (pid 1) "
-                              "is declared instead: partial, 770 s with three rounds (issue 46)",
-}
-KNOWN_WRONG_ROUNDS = 2  # the joint is missed in round 2; a third round only adds its minutes
-
-
-def _hard(case):
-    reason = KNOWN_WRONG.get(case.name)
-    return pytest.param(case, marks=pytest.mark.xfail(strict=True, reason=reason)) if reason else case
-
-
 @pytest.mark.slow
-@pytest.mark.parametrize("case", [_hard(c) for c in HARD_CASES], ids=lambda c: c.name)
+@pytest.mark.parametrize("case", HARD_CASES, ids=lambda c: c.name)
 def test_harder_cases_from_an_independent_truth(case):
     """Two effects at once, physics outside the library, a mass between grids, sparse
     sensors and a one-direction support, high stated noise, uniform damping, a saturating
@@ -57,9 +41,8 @@ def test_harder_cases_from_an_independent_truth(case):
     numbers — no "outside the library" beside a candidate at noise, no "more than one
     effect" at all."""
     text, test, params, noise = measure_hard(case)
-    rounds = KNOWN_WRONG_ROUNDS if case.name in KNOWN_WRONG else DiagnoseOptions.rounds
     report = diagnose(jaxfem.build_model(read_bdf_text(text)), test, params,
-                      options=DiagnoseOptions(noise=noise, rounds=rounds)).to_json()
+                      options=DiagnoseOptions(noise=noise)).to_json()
     assert found_hard(report, case), report["verdict"]
     for d in report["declared"]:
         assert d["heldout_rms_freq_dev_pct_after"] < d["heldout_rms_freq_dev_pct_before"]

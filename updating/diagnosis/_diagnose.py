@@ -94,18 +94,8 @@ from ._damping import MIN_MODES, diagnose_damping
 from ._diagnosis import Diagnosis, Localisation
 from ._effects import LocalDamping
 from ._evidence import combine, evidence, remainder, worse_modes
-from ._fit import (
-    Fit,
-    Fits,
-    candidate_fit,
-    cross_validate,
-    failure_reason,
-    fit,
-    fold_masks,
-    scan_costs,
-    threaded,
-    with_extension,
-)
+from ._fit import (Fit, Fits, candidate_fit, cross_validate, failure_reason, fit, fold_masks, scan_costs, soft_fits,
+                   threaded, with_extension)
 from ._localisation import group_scores, residual_forces
 from ._options import DiagnoseOptions
 from ._ray_fits import fit_candidates_ray
@@ -241,7 +231,7 @@ def _round(model: Model, test: ModalData, params: tuple, opts: Options, options:
     f_e = np.asarray(test.frequencies_hz)
     where = _localise(run, model, test, pset, f_e)
     base, base_held, masks = _baseline(run, where.aug, ne)
-    cands, walk_only, structural, screen_k = _candidates(run, model, where, base, f_e)
+    cands, walk_only, structural, screen_k = _candidates(run, model, where, base, f_e, soft=k > 1)
     short = list(dict.fromkeys(shortlist(cands, options.shortlist, options.per_kind, where.kinds, options.within)
                                + at_best_grid(cands, where.nodes, where.node_nominal)))
     with_masks(short, where.aug)
@@ -363,11 +353,14 @@ def _baseline(run: _Run, aug: Model, ne: int) -> tuple[Fit, object, list]:
     return base, cross_validate(run.fits, problem, run.none, base, masks, run.solver(None), run.options.threads), masks
 
 
-def _candidates(run: _Run, model: Model, where: _Where, base: Fit, f_e):
+def _candidates(run: _Run, model: Model, where: _Where, base: Fit, f_e, soft: bool):
     """Every candidate screened at the baseline: each element's stiffness and mass (the
     Jacobian), patches on shells, the joints and supports by a scan of their stiffness
-    (step 3). Returns the candidates, those only the place walk reaches, the structural
-    ones and every element's screened stiffness share."""
+    (step 3); with ``soft`` (rounds after the first) each joint also by a fit from its
+    scan's softest point (:func:`soft_fits`: 6–10 s a round at 628 DoFs; in the first round
+    the scans found every true joint of the truth suite). Returns the candidates, those
+    only the place walk reaches, the structural ones and every element's screened
+    stiffness share."""
     options, problem, aug, n_b = run.options, run.problem, where.aug, len(run.params)
     theta_b = base.theta[:n_b]
     run.say(f"screening (sensitivity of every element) ({run.elapsed()})")
@@ -395,6 +388,9 @@ def _candidates(run: _Run, model: Model, where: _Where, base: Fit, f_e):
             t, r = grid[int(np.argmin(costs))]
             more = [(t + d, r) for d in (-3.0, -1.5, 1.5)] + [(t, r + d) for d in (-3.0, -1.5, 1.5)]
             scans[c] = grid + more, costs + list(scan_costs(run.fits, problem, c.ext, theta_b, more, run.solver(c)))
+    joints = [c for c in structural if c.reference.kind == "joint" and soft]
+    for c, f in zip(joints, soft_fits(run.fits, problem, joints, theta_b, run.solver, options.threads)):
+        scans[c] = scans[c][0] + [f.theta[n_b:]], scans[c][1] + [f.cost]
     for c in structural:
         grid, costs = scans[c]
         c.screen, c.theta0 = 1 - float(np.min(costs)) / base.cost, np.atleast_1d(grid[int(np.argmin(costs))])
