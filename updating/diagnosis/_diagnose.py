@@ -358,7 +358,7 @@ def _candidates(run: _Run, model: Model, where: _Where, base: Fit, f_e, soft: bo
     Jacobian), patches on shells, the joints and supports by a scan of their stiffness
     (step 3); with ``soft`` (rounds after the first) each joint also by a fit from its
     scan's softest point (:func:`soft_fits`: 6–10 s a round at 628 DoFs; in the first round
-    the scans found every true joint of the truth suite). Returns the candidates, those
+    the scans found every true joint of the truth suite), its fit where it beats the scan. Returns the candidates, those
     only the place walk reaches, the structural ones and every element's screened
     stiffness share."""
     options, problem, aug, n_b = run.options, run.problem, where.aug, len(run.params)
@@ -388,12 +388,14 @@ def _candidates(run: _Run, model: Model, where: _Where, base: Fit, f_e, soft: bo
             t, r = grid[int(np.argmin(costs))]
             more = [(t + d, r) for d in (-3.0, -1.5, 1.5)] + [(t, r + d) for d in (-3.0, -1.5, 1.5)]
             scans[c] = grid + more, costs + list(scan_costs(run.fits, problem, c.ext, theta_b, more, run.solver(c)))
-    joints = [c for c in structural if c.reference.kind == "joint" and soft]
-    for c, f in zip(joints, soft_fits(run.fits, problem, joints, theta_b, run.solver, options.threads)):
-        scans[c] = scans[c][0] + [f.theta[n_b:]], scans[c][1] + [f.cost]
+    joints = [c for c in structural if c.reference.kind == "joint"] if soft else []
+    softened = dict(zip(joints, soft_fits(run.fits, problem, joints, theta_b, run.solver, options.threads)))
     for c in structural:
         grid, costs = scans[c]
         c.screen, c.theta0 = 1 - float(np.min(costs)) / base.cost, np.atleast_1d(grid[int(np.argmin(costs))])
+        if c in softened and softened[c].cost < min(costs):  # its fit from the soft end is the fit
+            c.fit = softened[c]
+            c.screen, c.theta0 = 1 - c.fit.cost / base.cost, c.fit.theta[n_b:]
         cands.append(c)
     return cands, walk_only, structural, elem_a
 
@@ -423,7 +425,7 @@ def _fit_shortlist(run: _Run, short: list[Candidate], structural, base: Fit, mod
     own = [next(c for c in order if c.family == f) for f in dict.fromkeys(c.family for c in order) if f != "mask"]
     order = own + [c for c in order if c not in own]
     jobs = [(i, c.ext, theta_b, c.scan if c not in structural else None, c.theta0, run.solver(c))
-            for i, c in enumerate(order)]
+            for i, c in enumerate(order) if c.fit is None]
     if options.ray:
         say(f"  on Ray ({options.ray}): {len(jobs)} candidates")
         done = fit_candidates_ray(problem, run.fits.settings, jobs, address=options.ray, workers=options.ray_workers)
@@ -432,7 +434,7 @@ def _fit_shortlist(run: _Run, short: list[Candidate], structural, base: Fit, mod
     for k, (job, (theta0, result)) in enumerate(done, 1):
         c = order[job[0]]
         c.theta0, c.fit = theta0, result
-        say(f"  fitted {k}/{len(order)}: {c.reference.kind} {c.reference.where()} ({run.elapsed()})")
+        say(f"  fitted {k}/{len(jobs)}: {c.reference.kind} {c.reference.where()} ({run.elapsed()})")
     for c0, c1 in refine_places(fitted, run.solver, run.fits, problem, where.aug, walkable, short, base, theta_b):
         say(f"  {c1.reference.kind} moved from grid {c0.reference.nodes[0]} to {c1.reference.nodes[0]} "
             f"({run.elapsed()})")
